@@ -524,15 +524,19 @@ class BodyReader {
       // ascii = one character and one separator per value.
       std::size_t min_record = 0;
       for (const Property& p : el.props) {
+        // A face list needs at least 3 indices (anything shorter is an error).
+        const std::size_t items = p.role == Role::kFaceList && want_faces_ ? 3 : 0;
         min_record +=
-            binary ? static_cast<std::size_t>(ScalarSize(p.is_list ? p.count_type : p.type)) : 2;
+            binary ? static_cast<std::size_t>(ScalarSize(p.is_list ? p.count_type : p.type)) +
+                         items * static_cast<std::size_t>(ScalarSize(p.type))
+                   : 2 * (1 + items);
       }
       const std::size_t budget = binary ? src.Remaining() : src.Remaining() + 1;
       if (el.count > budget / min_record) {
-        throw ParseError(source_, "element '" + el.name + "' claims " + std::to_string(el.count) +
-                                      " records (at least " + std::to_string(min_record) +
-                                      " bytes each) but only " + std::to_string(src.Remaining()) +
-                                      " bytes remain");
+        throw ParseError(source_, "element '" + Printable(el.name) + "' claims " +
+                                      std::to_string(el.count) + " records (at least " +
+                                      std::to_string(min_record) + " bytes each) but only " +
+                                      std::to_string(src.Remaining()) + " bytes remain");
       }
       const bool is_vertex = el.name == "vertex";
       const bool is_face = el.name == "face" && want_faces_;
@@ -595,7 +599,8 @@ class BodyReader {
   template <typename Source>
   [[noreturn]] void FailRead(const Source& src, const Element& el, std::uint64_t i,
                              const Property& p, Status st, bool count) const {
-    std::string what = el.name + " " + std::to_string(i) + ": property '" + p.name + "': ";
+    std::string what =
+        Printable(el.name) + " " + std::to_string(i) + ": property '" + Printable(p.name) + "': ";
     const std::string tok = Printable(src.LastToken());
     const char* type = ScalarName(count ? p.count_type : p.type);
     switch (st) {
@@ -620,8 +625,9 @@ class BodyReader {
                      std::uint64_t n) {
     if constexpr (std::is_same_v<Source, BinarySource>) {
       if (!src.Skip(n, static_cast<std::size_t>(ScalarSize(p.type)))) {
-        Fail(source_, el.name + " " + std::to_string(i) + ": property '" + p.name + "': list of " +
-                          std::to_string(n) + " items runs past the end of the file");
+        Fail(source_, Printable(el.name) + " " + std::to_string(i) + ": property '" +
+                          Printable(p.name) + "': list of " + std::to_string(n) +
+                          " items runs past the end of the file");
       }
     } else {
       for (std::uint64_t k = 0; k < n; ++k) {
@@ -638,8 +644,8 @@ class BodyReader {
     const Status st = src.Read(p.count_type, &c);
     if (st != Status::kOk) FailRead(src, el, i, p, st, true);
     if (c < 0) {
-      Fail(src.Location(source_), el.name + " " + std::to_string(i) + ": property '" + p.name +
-                                      "': negative list count " +
+      Fail(src.Location(source_), Printable(el.name) + " " + std::to_string(i) + ": property '" +
+                                      Printable(p.name) + "': negative list count " +
                                       std::to_string(static_cast<long long>(c)));
     }
     return static_cast<std::uint64_t>(c);
@@ -706,7 +712,7 @@ class BodyReader {
       }
       if (fixed) {
         if (!src.Skip(el.count, record)) {
-          Fail(source_, "element '" + el.name + "': unexpected end of file");
+          Fail(source_, "element '" + Printable(el.name) + "': unexpected end of file");
         }
         return;
       }
@@ -739,7 +745,8 @@ class BodyReader {
           double v;
           const Status st = src.Read(p.type, &v);
           if (st != Status::kOk) FailRead(src, el, i, p, st, false);
-          if (v < 0 || v >= static_cast<double>(vertex_count_)) {
+          if (v < 0 || v >= static_cast<double>(vertex_count_) ||
+              v > static_cast<double>(std::numeric_limits<int>::max())) {
             Fail(src.Location(source_), "face " + std::to_string(i) + ": vertex index " +
                                             std::to_string(static_cast<long long>(v)) +
                                             " out of range (" + std::to_string(vertex_count_) +

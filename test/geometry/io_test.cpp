@@ -517,7 +517,7 @@ std::vector<BadCase> BadPlyCases() {
                ":11: vertex 1: property 'y': 'abc' is not a valid float value"});
   c.push_back({"ascii_trunc", std::string(kAsciiHead) + "0.0 0.0 0.0\n1.0 0.0 0.0\n0.0 1.0",
                "vertex 2: property 'z': unexpected end of file"});
-  c.push_back({"ascii_trunc_face", std::string(kAsciiHead) + "0 0 0\n1 0 0\n0 1 0\n3 0 1",
+  c.push_back({"ascii_trunc_face", std::string(kAsciiHead) + "0 0 0\n1 0 0\n0 1 0\n3   0   1",
                "face 0: property 'vertex_indices': unexpected end of file"});
   c.push_back({"ascii_nan", std::string(kAsciiHead) + "0 0 0\n1 nan 0\n0 1 0\n3 0 1 2\n",
                "vertex 1: non-finite coordinate (1, nan, 0)"});
@@ -537,6 +537,11 @@ std::vector<BadCase> BadPlyCases() {
                "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
                "property float z\nproperty ushort label\nend_header\n0 0 0 70000\n",
                "vertex 0: property 'label': value '70000' out of range for ushort"});
+  c.push_back({"face_first_index_beyond_int",
+               "ply\nformat ascii 1.0\nelement face 1\nproperty list uchar uint vertex_indices\n"
+               "element vertex 4000000000\nproperty float x\nproperty float y\nproperty float z\n"
+               "end_header\n3 0 1 3000000000\n",
+               "face 0: vertex index 3000000000 out of range (4000000000 vertices)"});
   c.push_back({"ascii_huge_count",
                "ply\nformat ascii 1.0\nelement vertex 4000000000\nproperty float x\n"
                "property float y\nproperty float z\nend_header\n0 0 0\n",
@@ -576,7 +581,7 @@ std::vector<BadCase> BadPlyCases() {
                             "property list uint int vertex_indices\n");
     for (int k = 0; k < 9; ++k) PutBE(&b, 0.5f);
     PutBE<std::uint32_t>(&b, 0xffffffffu);
-    PutBE<std::int32_t>(&b, 0);
+    for (int k = 0; k < 3; ++k) PutBE<std::int32_t>(&b, 0);  // room for a minimal face
     c.push_back({"bin_list_overflow", b,
                  "face 0: list of 4294967295 indices runs past the end of the file"});
   }
