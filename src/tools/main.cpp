@@ -24,6 +24,8 @@ const std::map<std::string, std::string>& GroupDescriptions() {
       {"bench", "Benchmarks: print a table and write JSON"},
       {"train", "Train a network"},
       {"mesh", "Mesh and point-cloud utilities"},
+      {"bsp", "BSP-CVAE shape autoencoder: data, evaluation, interpolation"},
+      {"cad", "Procedural CAD library"},
   };
   return kGroups;
 }

@@ -1,0 +1,112 @@
+// BSP-CVAE: the class-conditioned variational shape autoencoder of DIMR (encoder: 3-D conv
+// over the occupancy grid + class one-hot -> latent mu, log-variance; decoder: latent +
+// class one-hot -> planes; BSP layers: planes -> convexes -> shape). Spec:
+// ../shared/reference/dimr-method.md sections 5 and 6. This header is LibTorch-free (pimpl)
+// so that the CLI and the pipeline can use the model without compiling torch headers.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "dimr/nn/bsp_dataset.h"
+
+namespace dimr::nn {
+
+struct BspConfig {
+  int resolution = 32;     // encoder input grid R (a power of two >= 8)
+  int latent_dim = 128;    // dimension of mu (and of log-variance)
+  int encoder_width = 32;  // channels of the first encoder conv (doubles per level)
+  int num_planes = 1024;   // P
+  int num_convexes = 128;  // C
+  int num_classes = 8;
+  std::vector<int> decoder_widths = {512, 1024, 2048};
+
+  // The reference configuration (64^3 input, 128-d latent, 4096 planes, 256 convexes).
+  static BspConfig Reference();
+  // The CPU-sized default (32^3, 128-d latent, 1024 planes, 128 convexes).
+  static BspConfig CpuDefault() { return BspConfig(); }
+  // Throws dimr::InvalidArgument naming the offending key.
+  void Validate() const;
+  std::string ToString() const;  // "resolution=32 latent_dim=128 ..."
+  static BspConfig FromString(const std::string& text);
+};
+
+struct BspTrainOptions {
+  // Epochs of the three phases: 0 continuous, 1 discrete, 2 discrete + overlap loss.
+  int epochs_phase0 = 60;
+  int epochs_phase1 = 30;
+  int epochs_phase2 = 0;
+  int batch_size = 16;
+  int points_per_sample = 1024;  // half inside, half outside, drawn with replacement
+  double learning_rate = 1e-4;
+  int lr_step_epochs = 200;  // StepLR(step, 0.5) as the reference
+  double kl_weight = 0.01;   // beta reached at the end of training (linear annealing)
+  std::uint64_t seed = 1;
+  int threads = 0;              // 0 = library default
+  std::string device = "cpu";   // "cpu" or "cuda"
+  std::string checkpoint_path;  // written every `checkpoint_every` epochs (and at the end)
+  int checkpoint_every = 5;
+  bool resume = true;      // continue from checkpoint_path if it exists
+  double max_minutes = 0;  // stop (after checkpointing) when exceeded; 0 = no limit
+};
+
+struct BspEpochLog {
+  int epoch = 0;  // 1-based over all phases
+  int phase = 0;
+  double recon_loss = 0;  // reconstruction term (without the weight regularisers)
+  double kl = 0;          // KL term (unweighted)
+  double beta = 0;
+  double val_iou = -1;  // mean occupancy IoU on the validation points (-1 if no val set)
+  double seconds = 0;
+};
+
+class BspModel {
+ public:
+  explicit BspModel(const BspConfig& config = BspConfig(), std::uint64_t seed = 1);
+  ~BspModel();
+  BspModel(BspModel&&) noexcept;
+  BspModel& operator=(BspModel&&) noexcept;
+
+  const BspConfig& config() const;
+  int phase() const;
+
+  // Loads a model saved by Save (config, phase and every named tensor are checked; a name or
+  // shape mismatch, a truncated or corrupt file gives dimr::ParseError naming the file).
+  static BspModel Load(const std::string& path);
+  // `half` stores float tensors as fp16 (loaded back as fp32).
+  void Save(const std::string& path, bool half = false) const;
+
+  // Trains on `train` (and reports IoU on `val` if not empty). Calls `log` after each epoch.
+  std::vector<BspEpochLog> Train(const BspDataset& train, const BspDataset& val,
+                                 const BspTrainOptions& options,
+                                 const std::function<void(const BspEpochLog&)>& log = {});
+
+  // Encoder in eval mode: (mu, log-variance) of one occupancy grid (R^3, x fastest).
+  std::pair<Eigen::VectorXf, Eigen::VectorXf> Encode(const std::vector<std::uint8_t>& grid,
+                                                     int cad_class) const;
+  // Batched encoding of a whole dataset: rows = samples, columns = [mu, logvar] (2*latent).
+  Eigen::MatrixXf EncodeAll(const BspDataset& data) const;
+  // Decoder in eval mode: P x 4 plane coefficients (a, b, c, d); inside a plane iff
+  // a*x + b*y + c*z + d <= 0.
+  Eigen::MatrixXf DecodePlanes(const Eigen::VectorXf& latent, int cad_class) const;
+  // For each convex, the planes it uses (convex_layer_weights > 0.01).
+  std::vector<std::vector<int>> ConvexPlanes() const;
+  // Occupancy (discrete BSP, inside iff min over convexes of the summed plane excess < 0.01)
+  // of query points (N x 3) for a latent code.
+  std::vector<std::uint8_t> Occupancy(const Eigen::VectorXf& latent, int cad_class,
+                                      const Eigen::MatrixX3f& points) const;
+  // Mean IoU between decoded (mu) and true occupancy over the query points of `data`.
+  double EvaluateIoU(const BspDataset& data) const;
+  std::int64_t NumParameters() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dimr::nn

@@ -1,0 +1,44 @@
+// Mesh extraction from BSP planes (dimr-method.md section 6): evaluate every convex on a
+// grid of cell centres in [-1, 1]^3, drop empty convexes and greedily drop redundant ones
+// (every grid point they hold is also held by another still-counted convex, convex index
+// order), then build each kept convex as an exact polytope from its planes
+// (geometry::IntersectHalfSpaces) and concatenate them (closed, possibly overlapping convex
+// parts; no boolean union, as the reference). LibTorch-free.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "dimr/geometry/polytope.h"
+#include "dimr/geometry/types.h"
+
+namespace dimr::pipeline {
+
+struct BspMeshOptions {
+  int grid = 32;                   // evaluation grid (reference: 32^3)
+  float inside_threshold = 0.01f;  // inside convex iff sum of plane excesses < threshold
+  double bound = 1.0;              // polytopes are clipped to [-bound, bound]^3
+};
+
+struct BspMeshResult {
+  geometry::TriangleMesh mesh;  // canonical frame, concatenation of closed convex polytopes
+  std::vector<int> kept_convexes;
+  int nonempty_convexes = 0;     // convexes holding >= 1 grid point
+  std::vector<int> face_convex;  // per triangle, the convex it belongs to
+};
+
+// planes: P x 4 (a, b, c, d), inside a plane iff a x + b y + c z + d <= 0.
+// convex_planes[k]: the plane indices of convex k. Throws dimr::InvalidArgument on a plane
+// index out of range or non-finite planes of a used convex.
+BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
+                             const std::vector<std::vector<int>>& convex_planes,
+                             const BspMeshOptions& options = BspMeshOptions());
+
+// Occupancy of the discrete BSP shape at points (N x 3): inside iff some convex has all its
+// planes' summed excess below the threshold.
+std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
+                                       const std::vector<std::vector<int>>& convex_planes,
+                                       const Eigen::MatrixX3f& points,
+                                       float inside_threshold = 0.01f);
+
+}  // namespace dimr::pipeline

@@ -1,0 +1,727 @@
+// BSP-CVAE in LibTorch (see include/dimr/nn/bsp_model.h and dimr-method.md sections 5-6).
+//
+// Deviations from the reference, all deliberate:
+//  - Reparameterisation uses std = exp(0.5 * logvar), consistent with the KL term (the
+//    reference uses 0.5 * exp(logvar), dimr-method.md 5.5 "BUG-ish").
+//  - The KL weight is annealed linearly to `kl_weight` over the whole run and clamped there
+//    (the reference's 0.1 * epoch / 600 keeps growing).
+//  - Encoder voxel channels are [occupied, x, y, z] with (x, y, z) the normalised voxel centre
+//    (the reference stores the last inside sample point that fell into the voxel).
+#include "dimr/nn/bsp_model.h"
+
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <random>
+#include <sstream>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+
+// ---------------------------------------------------------------------------------------
+// Config
+// ---------------------------------------------------------------------------------------
+
+BspConfig BspConfig::Reference() {
+  BspConfig c;
+  c.resolution = 64;
+  c.latent_dim = 128;
+  c.encoder_width = 32;
+  c.num_planes = 4096;
+  c.num_convexes = 256;
+  c.decoder_widths = {512, 1024, 2048};
+  return c;
+}
+
+void BspConfig::Validate() const {
+  auto fail = [](const std::string& key, const std::string& why) {
+    throw InvalidArgument("BspConfig." + key + ": " + why);
+  };
+  if (resolution < 8 || resolution > 256 || (resolution & (resolution - 1)) != 0) {
+    fail("resolution", "must be a power of two in [8, 256], got " + std::to_string(resolution));
+  }
+  if (latent_dim < 1 || latent_dim > 4096) fail("latent_dim", "must be in [1, 4096]");
+  if (encoder_width < 1 || encoder_width > 1024) fail("encoder_width", "must be in [1, 1024]");
+  if (num_planes < 4 || num_planes > 65536) fail("num_planes", "must be in [4, 65536]");
+  if (num_convexes < 1 || num_convexes > 4096) fail("num_convexes", "must be in [1, 4096]");
+  if (num_classes < 1 || num_classes > 64) fail("num_classes", "must be in [1, 64]");
+  if (decoder_widths.empty()) fail("decoder_widths", "needs at least one hidden layer");
+  for (int w : decoder_widths) {
+    if (w < 1 || w > 65536) fail("decoder_widths", "widths must be in [1, 65536]");
+  }
+}
+
+std::string BspConfig::ToString() const {
+  std::ostringstream s;
+  s << "resolution=" << resolution << " latent_dim=" << latent_dim
+    << " encoder_width=" << encoder_width << " num_planes=" << num_planes
+    << " num_convexes=" << num_convexes << " num_classes=" << num_classes << " decoder_widths=";
+  for (std::size_t i = 0; i < decoder_widths.size(); ++i) {
+    s << (i ? "," : "") << decoder_widths[i];
+  }
+  return s.str();
+}
+
+BspConfig BspConfig::FromString(const std::string& text) {
+  BspConfig c;
+  std::istringstream in(text);
+  std::string token;
+  while (in >> token) {
+    const auto eq = token.find('=');
+    if (eq == std::string::npos) throw InvalidArgument("BspConfig: bad token '" + token + "'");
+    const std::string key = token.substr(0, eq), value = token.substr(eq + 1);
+    try {
+      if (key == "resolution") {
+        c.resolution = std::stoi(value);
+      } else if (key == "latent_dim") {
+        c.latent_dim = std::stoi(value);
+      } else if (key == "encoder_width") {
+        c.encoder_width = std::stoi(value);
+      } else if (key == "num_planes") {
+        c.num_planes = std::stoi(value);
+      } else if (key == "num_convexes") {
+        c.num_convexes = std::stoi(value);
+      } else if (key == "num_classes") {
+        c.num_classes = std::stoi(value);
+      } else if (key == "decoder_widths") {
+        c.decoder_widths.clear();
+        std::istringstream ws(value);
+        std::string w;
+        while (std::getline(ws, w, ',')) c.decoder_widths.push_back(std::stoi(w));
+      } else {
+        throw InvalidArgument("BspConfig: unknown key '" + key + "'");
+      }
+    } catch (const std::logic_error&) {
+      throw InvalidArgument("BspConfig: bad value for '" + key + "': '" + value + "'");
+    }
+  }
+  c.Validate();
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------
+// Network
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+constexpr double kLeak = 0.01;
+constexpr float kConvexThreshold = 0.01f;
+
+struct EncoderImpl : torch::nn::Module {
+  std::vector<torch::nn::Conv3d> convs;
+  std::vector<torch::nn::BatchNorm3d> bns;
+  torch::nn::Conv3d out{nullptr};
+
+  explicit EncoderImpl(const BspConfig& c) {
+    int in = 4 + c.num_classes;
+    int ch = c.encoder_width;
+    int size = c.resolution;
+    int level = 1;
+    while (size > 4) {
+      convs.push_back(register_module(
+          "conv_" + std::to_string(level),
+          torch::nn::Conv3d(torch::nn::Conv3dOptions(in, ch, 4).stride(2).padding(1))));
+      bns.push_back(register_module("bn_" + std::to_string(level), torch::nn::BatchNorm3d(ch)));
+      in = ch;
+      ch = std::min(ch * 2, 512);
+      size /= 2;
+      ++level;
+    }
+    out = register_module(
+        "conv_out",
+        torch::nn::Conv3d(torch::nn::Conv3dOptions(in, 2 * c.latent_dim, 4).stride(1).padding(0)));
+    for (auto& conv : convs) {
+      torch::nn::init::xavier_uniform_(conv->weight);
+      torch::nn::init::zeros_(conv->bias);
+    }
+    torch::nn::init::xavier_uniform_(out->weight);
+    torch::nn::init::zeros_(out->bias);
+  }
+
+  torch::Tensor forward(torch::Tensor x) {
+    for (std::size_t i = 0; i < convs.size(); ++i) {
+      x = torch::leaky_relu(bns[i]->forward(convs[i]->forward(x)), kLeak);
+    }
+    x = out->forward(x);
+    return x.view({x.size(0), -1});
+  }
+};
+TORCH_MODULE(Encoder);
+
+struct DecoderImpl : torch::nn::Module {
+  std::vector<torch::nn::Linear> linears;
+  std::vector<torch::nn::BatchNorm1d> bns;
+
+  explicit DecoderImpl(const BspConfig& c) {
+    int in = c.latent_dim + c.num_classes;
+    int index = 1;
+    for (int w : c.decoder_widths) {
+      linears.push_back(
+          register_module("linear_" + std::to_string(index), torch::nn::Linear(in, w)));
+      bns.push_back(register_module("bn_" + std::to_string(index), torch::nn::BatchNorm1d(w)));
+      in = w;
+      ++index;
+    }
+    linears.push_back(register_module("linear_" + std::to_string(index),
+                                      torch::nn::Linear(in, 4 * c.num_planes)));
+  }
+
+  torch::Tensor forward(torch::Tensor x) {
+    for (std::size_t i = 0; i + 1 < linears.size(); ++i) {
+      x = torch::leaky_relu(bns[i]->forward(linears[i]->forward(x)), kLeak);
+    }
+    return linears.back()->forward(x);
+  }
+};
+TORCH_MODULE(Decoder);
+
+struct GeneratorImpl : torch::nn::Module {
+  torch::Tensor convex_layer_weights;   // [P, C]
+  torch::Tensor concave_layer_weights;  // [C, 1]
+  explicit GeneratorImpl(const BspConfig& c) {
+    convex_layer_weights = register_parameter("convex_layer_weights",
+                                              torch::randn({c.num_planes, c.num_convexes}) * 0.02);
+    concave_layer_weights = register_parameter("concave_layer_weights",
+                                               torch::randn({c.num_convexes, 1}) * 0.02 + 1e-5);
+  }
+};
+TORCH_MODULE(Generator);
+
+struct BspNetImpl : torch::nn::Module {
+  BspConfig config;
+  Encoder encoder{nullptr};
+  Decoder decoder{nullptr};
+  Generator generator{nullptr};
+
+  explicit BspNetImpl(const BspConfig& c) : config(c) {
+    encoder = register_module("encoder", Encoder(c));
+    decoder = register_module("decoder", Decoder(c));
+    generator = register_module("generator", Generator(c));
+  }
+
+  torch::Tensor OneHot(const torch::Tensor& classes) const {
+    return torch::one_hot(classes, config.num_classes).to(torch::kFloat);
+  }
+
+  // grids: [B, R, R, R] uint8 (z, y, x order = x fastest in memory); classes: [B] int64.
+  torch::Tensor EncoderInput(const torch::Tensor& grids, const torch::Tensor& classes) const {
+    const int64_t B = grids.size(0), R = config.resolution;
+    auto occ = grids.to(torch::kFloat).unsqueeze(1);  // [B,1,R,R,R]
+    auto lin = (torch::arange(R, occ.options()) * 2 + 1) / static_cast<double>(R) - 1.0;
+    auto x = lin.view({1, 1, 1, 1, R}).expand({1, 1, R, R, R});
+    auto y = lin.view({1, 1, 1, R, 1}).expand({1, 1, R, R, R});
+    auto z = lin.view({1, 1, R, 1, 1}).expand({1, 1, R, R, R});
+    auto coords = torch::cat({x, y, z}, 1) * occ;  // [B,3,R,R,R]
+    auto onehot = OneHot(classes)
+                      .view({B, config.num_classes, 1, 1, 1})
+                      .expand({B, config.num_classes, R, R, R});
+    return torch::cat({occ, coords, onehot}, 1);
+  }
+
+  // -> [B, 2*latent] = [mu, logvar]
+  torch::Tensor Encode(const torch::Tensor& grids, const torch::Tensor& classes) {
+    return encoder->forward(EncoderInput(grids, classes));
+  }
+
+  // z: [B, latent] -> planes [B, 4, P]
+  torch::Tensor Planes(const torch::Tensor& z, const torch::Tensor& classes) {
+    auto out = decoder->forward(torch::cat({z, OneHot(classes)}, 1));
+    return out.view({z.size(0), 4, config.num_planes});
+  }
+
+  // points [B, N, 3] -> h1 [B, N, P]
+  static torch::Tensor PlaneExcess(const torch::Tensor& points, const torch::Tensor& planes) {
+    auto ones = torch::ones({points.size(0), points.size(1), 1}, points.options());
+    return torch::relu(torch::bmm(torch::cat({points, ones}, 2), planes));
+  }
+};
+TORCH_MODULE(BspNet);
+
+torch::Tensor KlTerm(const torch::Tensor& mu, const torch::Tensor& logvar) {
+  return -0.5 * torch::mean(1 + logvar - torch::exp(logvar) - mu * mu);
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// BspModel
+// ---------------------------------------------------------------------------------------
+
+struct BspModel::Impl {
+  BspConfig config;
+  BspNet net{nullptr};
+  int phase = 0;
+  torch::Device device = torch::kCPU;
+  explicit Impl(const BspConfig& c) : config(c), net(c) {}
+};
+
+BspModel::BspModel(const BspConfig& config, std::uint64_t seed) {
+  config.Validate();
+  torch::manual_seed(seed);
+  impl_ = std::make_unique<Impl>(config);
+  impl_->net->eval();
+}
+BspModel::~BspModel() = default;
+BspModel::BspModel(BspModel&&) noexcept = default;
+BspModel& BspModel::operator=(BspModel&&) noexcept = default;
+
+const BspConfig& BspModel::config() const { return impl_->config; }
+int BspModel::phase() const { return impl_->phase; }
+
+std::int64_t BspModel::NumParameters() const {
+  std::int64_t n = 0;
+  for (const auto& p : impl_->net->parameters()) n += p.numel();
+  return n;
+}
+
+void BspModel::Save(const std::string& path, bool half) const {
+  torch::serialize::OutputArchive archive;
+  archive.write("dimr_kind", c10::IValue(std::string("bsp_cvae")));
+  archive.write("dimr_config", c10::IValue(impl_->config.ToString()));
+  archive.write("dimr_phase", c10::IValue(static_cast<int64_t>(impl_->phase)));
+  for (const auto& item : impl_->net->named_parameters()) {
+    auto t = item.value().detach().to(torch::kCPU);
+    archive.write("param/" + item.key(), half ? t.to(torch::kHalf) : t, /*is_buffer=*/true);
+  }
+  for (const auto& item : impl_->net->named_buffers()) {
+    auto t = item.value().detach().to(torch::kCPU);
+    if (half && t.is_floating_point()) t = t.to(torch::kHalf);
+    archive.write("buffer/" + item.key(), t, /*is_buffer=*/true);
+  }
+  try {
+    archive.save_to(path);
+  } catch (const c10::Error& e) {
+    throw Error("cannot write BSP model '" + path + "': " + e.what_without_backtrace());
+  }
+}
+
+BspModel BspModel::Load(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw ParseError(path, "file does not exist");
+  torch::serialize::InputArchive archive;
+  c10::IValue kind, config_text, phase;
+  try {
+    archive.load_from(path);
+    if (!archive.try_read("dimr_kind", kind) || !kind.isString() ||
+        kind.toStringRef() != "bsp_cvae") {
+      throw ParseError(path, "not a dimr BSP-CVAE model (missing or wrong 'dimr_kind')");
+    }
+    if (!archive.try_read("dimr_config", config_text) || !config_text.isString()) {
+      throw ParseError(path, "missing 'dimr_config'");
+    }
+    if (!archive.try_read("dimr_phase", phase) || !phase.isInt()) {
+      throw ParseError(path, "missing 'dimr_phase'");
+    }
+  } catch (const c10::Error& e) {
+    throw ParseError(
+        path, std::string("corrupt or unreadable model archive: ") + e.what_without_backtrace());
+  }
+  BspConfig config;
+  try {
+    config = BspConfig::FromString(config_text.toStringRef());
+  } catch (const InvalidArgument& e) {
+    throw ParseError(path, e.what());
+  }
+  BspModel model(config);
+  model.impl_->phase = static_cast<int>(phase.toInt());
+  torch::NoGradGuard no_grad;
+  auto load_into = [&](const std::string& key, torch::Tensor& dst) {
+    torch::Tensor t;
+    bool found = false;
+    try {
+      found = archive.try_read(key, t, /*is_buffer=*/true);
+    } catch (const c10::Error& e) {
+      throw ParseError(path, "tensor '" + key + "' unreadable: " + e.what_without_backtrace());
+    }
+    if (!found) throw ParseError(path, "missing tensor '" + key + "'");
+    if (t.sizes() != dst.sizes()) {
+      std::ostringstream msg;
+      msg << "tensor '" << key << "' has shape " << t.sizes() << ", the model expects "
+          << dst.sizes();
+      throw ParseError(path, msg.str());
+    }
+    dst.copy_(t.to(dst.dtype()));
+  };
+  for (auto& item : model.impl_->net->named_parameters()) {
+    load_into("param/" + item.key(), item.value());
+  }
+  for (auto& item : model.impl_->net->named_buffers()) {
+    load_into("buffer/" + item.key(), item.value());
+  }
+  return model;
+}
+
+namespace {
+
+// Stacks the grids and classes of `indices`.
+std::pair<torch::Tensor, torch::Tensor> GridBatch(const BspDataset& data,
+                                                  const std::vector<std::size_t>& indices) {
+  const int64_t R = data.resolution;
+  const int64_t cells = R * R * R;
+  auto grids = torch::empty({static_cast<int64_t>(indices.size()), R, R, R}, torch::kUInt8);
+  auto classes = torch::empty({static_cast<int64_t>(indices.size())}, torch::kLong);
+  auto* g = grids.data_ptr<std::uint8_t>();
+  auto* c = classes.data_ptr<int64_t>();
+  for (std::size_t b = 0; b < indices.size(); ++b) {
+    const BspSample& s = data.samples[indices[b]];
+    std::copy(s.grid.begin(), s.grid.end(), g + b * cells);
+    c[b] = s.cad_class;
+  }
+  return {grids, classes};
+}
+
+void CheckDataset(const BspDataset& data, const BspConfig& config, const std::string& what) {
+  if (data.resolution != config.resolution) {
+    throw InvalidArgument(what + " has resolution " + std::to_string(data.resolution) +
+                          " but the model expects " + std::to_string(config.resolution));
+  }
+  const std::size_t cells =
+      static_cast<std::size_t>(data.resolution) * data.resolution * data.resolution;
+  for (std::size_t i = 0; i < data.samples.size(); ++i) {
+    const auto& s = data.samples[i];
+    if (s.cad_class < 0 || s.cad_class >= config.num_classes) {
+      throw InvalidArgument(what + " sample " + std::to_string(i) + " has class " +
+                            std::to_string(s.cad_class) + " outside [0, " +
+                            std::to_string(config.num_classes) + ")");
+    }
+    if (s.grid.size() != cells || (!s.iou_grid.empty() && s.iou_grid.size() != cells)) {
+      throw InvalidArgument(what + " sample " + std::to_string(i) + " has a wrong grid size");
+    }
+  }
+}
+
+// Voxel-centre coordinates of an R^3 grid, [R^3, 3], x fastest.
+torch::Tensor GridCenters(int R) {
+  auto lin = (torch::arange(R, torch::kFloat) * 2 + 1) / static_cast<double>(R) - 1.0;
+  auto zz = lin.view({R, 1, 1}).expand({R, R, R});
+  auto yy = lin.view({1, R, 1}).expand({R, R, R});
+  auto xx = lin.view({1, 1, R}).expand({R, R, R});
+  return torch::stack({xx, yy, zz}, 3).reshape({R * R * R, 3});
+}
+
+}  // namespace
+
+std::pair<Eigen::VectorXf, Eigen::VectorXf> BspModel::Encode(const std::vector<std::uint8_t>& grid,
+                                                             int cad_class) const {
+  BspDataset one;
+  one.resolution = impl_->config.resolution;
+  one.samples.push_back(BspSample{cad_class, "", grid, grid, {}, {}});
+  Eigen::MatrixXf all = EncodeAll(one);
+  const int L = impl_->config.latent_dim;
+  return {all.row(0).head(L).transpose(), all.row(0).tail(L).transpose()};
+}
+
+Eigen::MatrixXf BspModel::EncodeAll(const BspDataset& data) const {
+  CheckDataset(data, impl_->config, "encoder input");
+  torch::NoGradGuard no_grad;
+  impl_->net->eval();
+  const int D = 2 * impl_->config.latent_dim;
+  Eigen::MatrixXf out(static_cast<Eigen::Index>(data.samples.size()), D);
+  const std::size_t batch = 32;
+  for (std::size_t start = 0; start < data.samples.size(); start += batch) {
+    std::vector<std::size_t> idx;
+    for (std::size_t i = start; i < std::min(start + batch, data.samples.size()); ++i) {
+      idx.push_back(i);
+    }
+    auto [grids, classes] = GridBatch(data, idx);
+    auto codes = impl_->net->Encode(grids.to(impl_->device), classes.to(impl_->device))
+                     .to(torch::kCPU)
+                     .contiguous();
+    const float* p = codes.data_ptr<float>();
+    for (std::size_t b = 0; b < idx.size(); ++b) {
+      for (int d = 0; d < D; ++d) out(static_cast<Eigen::Index>(start + b), d) = p[b * D + d];
+    }
+  }
+  return out;
+}
+
+Eigen::MatrixXf BspModel::DecodePlanes(const Eigen::VectorXf& latent, int cad_class) const {
+  const auto& c = impl_->config;
+  if (latent.size() != c.latent_dim && latent.size() != 2 * c.latent_dim) {
+    throw InvalidArgument("DecodePlanes: latent has " + std::to_string(latent.size()) +
+                          " values, expected " + std::to_string(c.latent_dim) + " (mu) or " +
+                          std::to_string(2 * c.latent_dim) + " (mu, logvar)");
+  }
+  if (cad_class < 0 || cad_class >= c.num_classes) {
+    throw InvalidArgument("DecodePlanes: class " + std::to_string(cad_class) + " out of range");
+  }
+  if (!latent.allFinite()) throw InvalidArgument("DecodePlanes: latent code is not finite");
+  torch::NoGradGuard no_grad;
+  impl_->net->eval();
+  auto z = torch::from_blob(const_cast<float*>(latent.data()), {1, c.latent_dim}, torch::kFloat)
+               .clone()
+               .to(impl_->device);
+  auto cls = torch::full({1}, cad_class, torch::kLong).to(impl_->device);
+  auto planes = impl_->net->Planes(z, cls).to(torch::kCPU).contiguous();  // [1, 4, P]
+  Eigen::MatrixXf out(c.num_planes, 4);
+  const float* p = planes.data_ptr<float>();
+  for (int k = 0; k < 4; ++k) {
+    for (int i = 0; i < c.num_planes; ++i) out(i, k) = p[k * c.num_planes + i];
+  }
+  return out;
+}
+
+std::vector<std::vector<int>> BspModel::ConvexPlanes() const {
+  auto T = impl_->net->generator->convex_layer_weights.detach().to(torch::kCPU).contiguous();
+  const auto& c = impl_->config;
+  std::vector<std::vector<int>> out(c.num_convexes);
+  const float* t = T.data_ptr<float>();
+  for (int p = 0; p < c.num_planes; ++p) {
+    for (int k = 0; k < c.num_convexes; ++k) {
+      if (t[p * c.num_convexes + k] > kConvexThreshold) out[k].push_back(p);
+    }
+  }
+  return out;
+}
+
+std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int cad_class,
+                                              const Eigen::MatrixX3f& points) const {
+  const auto& c = impl_->config;
+  Eigen::MatrixXf planes = DecodePlanes(latent.head(c.latent_dim), cad_class);
+  torch::NoGradGuard no_grad;
+  auto P = torch::from_blob(planes.data(), {4, c.num_planes}, torch::kFloat);  // col-major P x 4
+  // Eigen stores P x 4 column-major: memory is [4][P], i.e. exactly a row-major [4, P].
+  auto planes_t = P.clone().unsqueeze(0).to(impl_->device);
+  auto B =
+      (impl_->net->generator->convex_layer_weights.detach() > kConvexThreshold).to(torch::kFloat);
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(points.rows()));
+  const int64_t chunk = 8192;
+  Eigen::Matrix<float, Eigen::Dynamic, 3, Eigen::RowMajor> rows = points;
+  for (int64_t start = 0; start < points.rows(); start += chunk) {
+    const int64_t n = std::min<int64_t>(chunk, points.rows() - start);
+    auto pts = torch::from_blob(rows.data() + start * 3, {1, n, 3}, torch::kFloat)
+                   .clone()
+                   .to(impl_->device);
+    auto h1 = BspNetImpl::PlaneExcess(pts, planes_t);  // [1, n, P]
+    auto h2 = torch::matmul(h1, B);                    // [1, n, C]
+    auto inside = (std::get<0>(h2.min(2)) < kConvexThreshold).to(torch::kCPU).contiguous();
+    const bool* in = inside.data_ptr<bool>();
+    for (int64_t i = 0; i < n; ++i) out[static_cast<std::size_t>(start + i)] = in[i] ? 1 : 0;
+  }
+  return out;
+}
+
+double BspModel::EvaluateIoU(const BspDataset& data) const {
+  CheckDataset(data, impl_->config, "evaluation set");
+  if (data.samples.empty()) return 0.0;
+  const int R = data.resolution;
+  Eigen::MatrixXf codes = EncodeAll(data);
+  auto centers_t = GridCenters(R).contiguous();
+  Eigen::MatrixX3f centers(R * R * R, 3);
+  const float* cp = centers_t.data_ptr<float>();
+  for (int i = 0; i < R * R * R; ++i) centers.row(i) << cp[3 * i], cp[3 * i + 1], cp[3 * i + 2];
+  double sum = 0.0;
+  for (std::size_t s = 0; s < data.samples.size(); ++s) {
+    const Eigen::VectorXf mu =
+        codes.row(static_cast<Eigen::Index>(s)).head(impl_->config.latent_dim);
+    const auto pred = Occupancy(mu, data.samples[s].cad_class, centers);
+    const auto& sample = data.samples[s];
+    const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
+    std::size_t inter = 0, uni = 0;
+    for (std::size_t i = 0; i < pred.size(); ++i) {
+      const bool a = pred[i] != 0, b = target[i] != 0;
+      inter += a && b;
+      uni += a || b;
+    }
+    sum += uni ? static_cast<double>(inter) / static_cast<double>(uni) : 1.0;
+  }
+  return sum / static_cast<double>(data.samples.size());
+}
+
+std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDataset& val,
+                                         const BspTrainOptions& opt,
+                                         const std::function<void(const BspEpochLog&)>& log) {
+  CheckDataset(train, impl_->config, "training set");
+  if (!val.samples.empty()) CheckDataset(val, impl_->config, "validation set");
+  if (train.samples.empty()) throw InvalidArgument("training set is empty");
+  if (opt.batch_size < 1 || opt.points_per_sample < 2) {
+    throw InvalidArgument("BspTrainOptions: batch_size >= 1 and points_per_sample >= 2 required");
+  }
+  for (std::size_t i = 0; i < train.samples.size(); ++i) {
+    if (train.samples[i].inside_points.empty() || train.samples[i].outside_points.empty()) {
+      throw InvalidArgument("training sample " + std::to_string(i) + " (" +
+                            train.samples[i].model_id + ") has no inside or no outside points");
+    }
+  }
+  if (opt.threads > 0) torch::set_num_threads(opt.threads);
+  if (opt.device == "cuda") {
+    if (!torch::cuda::is_available())
+      throw InvalidArgument("device 'cuda' requested but not available");
+    impl_->device = torch::Device(torch::kCUDA);
+  } else if (opt.device != "cpu") {
+    throw InvalidArgument("unknown device '" + opt.device + "' (cpu or cuda)");
+  }
+  auto& net = impl_->net;
+  net->to(impl_->device);
+
+  const int total_epochs = opt.epochs_phase0 + opt.epochs_phase1 + opt.epochs_phase2;
+  int start_epoch = 0;
+  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
+  const std::string optim_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".optim";
+  const std::string epoch_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".epoch";
+  if (opt.resume && !opt.checkpoint_path.empty() && std::filesystem::exists(opt.checkpoint_path) &&
+      std::filesystem::exists(epoch_path)) {
+    BspModel loaded = Load(opt.checkpoint_path);
+    if (loaded.config().ToString() != impl_->config.ToString()) {
+      throw InvalidArgument("checkpoint '" + opt.checkpoint_path +
+                            "' has a different configuration: " + loaded.config().ToString());
+    }
+    {
+      torch::NoGradGuard no_grad;
+      auto src = loaded.impl_->net->named_parameters();
+      for (auto& item : net->named_parameters()) item.value().copy_(src[item.key()]);
+      auto srcb = loaded.impl_->net->named_buffers();
+      for (auto& item : net->named_buffers()) item.value().copy_(srcb[item.key()]);
+    }
+    std::ifstream ef(epoch_path);
+    ef >> start_epoch;
+    if (std::filesystem::exists(optim_path)) {
+      try {
+        torch::load(optimizer, optim_path);
+      } catch (const c10::Error&) {
+        std::fprintf(stderr, "warning: optimizer state '%s' unreadable, restarting Adam\n",
+                     optim_path.c_str());
+      }
+    }
+    std::fprintf(stderr, "resuming from %s at epoch %d\n", opt.checkpoint_path.c_str(),
+                 start_epoch);
+  }
+
+  std::mt19937_64 rng(opt.seed);
+  for (int skip = 0; skip < start_epoch; ++skip) rng.discard(1000003);
+  const int N = opt.points_per_sample;
+  const int half = N / 2;
+  std::vector<BspEpochLog> logs;
+  const auto t_start = std::chrono::steady_clock::now();
+  auto checkpoint = [&](int epoch_done) {
+    if (opt.checkpoint_path.empty()) return;
+    const std::string tmp = opt.checkpoint_path + ".tmp";
+    net->to(torch::kCPU);
+    const auto saved_device = impl_->device;
+    impl_->device = torch::kCPU;
+    Save(tmp);
+    impl_->device = saved_device;
+    net->to(impl_->device);
+    std::filesystem::rename(tmp, opt.checkpoint_path);
+    torch::save(optimizer, optim_path);
+    std::ofstream(epoch_path) << epoch_done << "\n";
+  };
+
+  for (int epoch = start_epoch; epoch < total_epochs; ++epoch) {
+    const int phase =
+        epoch < opt.epochs_phase0 ? 0 : (epoch < opt.epochs_phase0 + opt.epochs_phase1 ? 1 : 2);
+    impl_->phase = phase;
+    const double lr = opt.learning_rate * std::pow(0.5, epoch / std::max(1, opt.lr_step_epochs));
+    for (auto& group : optimizer.param_groups()) {
+      static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+    }
+    const double beta = opt.kl_weight * static_cast<double>(epoch + 1) / total_epochs;
+    net->train();
+    std::vector<std::size_t> order(train.samples.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), rng);
+    double recon_sum = 0, kl_sum = 0;
+    int batches = 0;
+    const auto t0 = std::chrono::steady_clock::now();
+    for (std::size_t start = 0; start < order.size(); start += opt.batch_size) {
+      std::vector<std::size_t> idx(order.begin() + start,
+                                   order.begin() + std::min(order.size(), start + opt.batch_size));
+      if (idx.size() < 2 && order.size() >= 2) continue;  // BatchNorm needs >= 2 samples
+      const int64_t Bn = static_cast<int64_t>(idx.size());
+      auto [grids, classes] = GridBatch(train, idx);
+      auto pts = torch::empty({Bn, N, 3}, torch::kFloat);
+      auto occ = torch::empty({Bn, N, 1}, torch::kFloat);
+      float* pp = pts.data_ptr<float>();
+      float* op = occ.data_ptr<float>();
+      for (int64_t b = 0; b < Bn; ++b) {
+        const BspSample& s = train.samples[idx[b]];
+        const std::size_t n_in = s.inside_points.size() / 3, n_out = s.outside_points.size() / 3;
+        for (int i = 0; i < N; ++i) {
+          const bool inside = i < half;
+          const auto& src = inside ? s.inside_points : s.outside_points;
+          const std::size_t k = rng() % (inside ? n_in : n_out);
+          for (int d = 0; d < 3; ++d) pp[(b * N + i) * 3 + d] = src[3 * k + d];
+          op[b * N + i] = inside ? 1.0f : 0.0f;
+        }
+      }
+      grids = grids.to(impl_->device);
+      classes = classes.to(impl_->device);
+      pts = pts.to(impl_->device);
+      occ = occ.to(impl_->device);
+
+      auto code = net->Encode(grids, classes);
+      const int L = impl_->config.latent_dim;
+      auto mu = code.slice(1, 0, L);
+      auto logvar = code.slice(1, L, 2 * L);
+      auto z = mu + torch::randn_like(mu) * torch::exp(0.5 * logvar);
+      auto planes = net->Planes(z, classes);
+      auto h1 = BspNetImpl::PlaneExcess(pts, planes);
+      auto T = net->generator->convex_layer_weights;
+      auto W = net->generator->concave_layer_weights;
+      torch::Tensor recon;
+      torch::Tensor reg = torch::zeros({}, pts.options());
+      if (phase == 0) {
+        auto h2 = torch::clamp(1 - torch::matmul(h1, T), 0, 1);
+        auto h3 = torch::clamp(torch::matmul(h2, W), 0, 1);
+        recon = torch::mean(torch::pow(occ - h3, 2));
+        // Weight regularisers of the continuous phase (sums, as the reference).
+        reg = torch::sum(torch::abs(W - 1)) + torch::sum(torch::relu(T - 1) + torch::relu(-T));
+      } else {
+        auto Bm = (T.detach() > kConvexThreshold).to(torch::kFloat);
+        auto h2 = torch::matmul(h1, Bm);
+        auto h3 = std::get<0>(h2.min(2, /*keepdim=*/true));
+        recon =
+            torch::mean((1 - occ) * (1 - torch::clamp_max(h3, 1)) + occ * torch::clamp_min(h3, 0));
+        if (phase == 2) {
+          auto inside_c = (h2 < kConvexThreshold).to(torch::kFloat);
+          auto multi = (inside_c.sum(2, true) > 1).to(torch::kFloat);
+          recon = recon - torch::mean(h2 * occ * inside_c * multi);
+        }
+      }
+      auto kl = KlTerm(mu, logvar);
+      auto loss = recon + reg + beta * kl;
+      optimizer.zero_grad();
+      loss.backward();
+      optimizer.step();
+      recon_sum += recon.item<double>();
+      kl_sum += kl.item<double>();
+      ++batches;
+    }
+    BspEpochLog entry;
+    entry.epoch = epoch + 1;
+    entry.phase = phase;
+    entry.recon_loss = batches ? recon_sum / batches : 0;
+    entry.kl = batches ? kl_sum / batches : 0;
+    entry.beta = beta;
+    entry.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    net->eval();
+    const bool last = epoch + 1 == total_epochs;
+    const double minutes =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count() / 60.0;
+    const bool out_of_time = opt.max_minutes > 0 && minutes > opt.max_minutes;
+    if (!val.samples.empty() &&
+        ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {
+      if (phase > 0) entry.val_iou = EvaluateIoU(val);
+    }
+    logs.push_back(entry);
+    if (log) log(entry);
+    if ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time) {
+      checkpoint(epoch + 1);
+    }
+    if (out_of_time) {
+      std::fprintf(stderr, "stopping after %.1f minutes (max_minutes)\n", minutes);
+      break;
+    }
+  }
+  net->eval();
+  return logs;
+}
+
+}  // namespace dimr::nn

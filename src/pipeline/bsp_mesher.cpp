@@ -1,0 +1,143 @@
+#include "dimr/pipeline/bsp_mesher.h"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::pipeline {
+namespace {
+
+void CheckInputs(const Eigen::MatrixXf& planes, const std::vector<std::vector<int>>& convexes) {
+  if (planes.cols() != 4) {
+    throw InvalidArgument("BSP planes must be P x 4, got " + std::to_string(planes.rows()) + " x " +
+                          std::to_string(planes.cols()));
+  }
+  for (std::size_t k = 0; k < convexes.size(); ++k) {
+    for (int p : convexes[k]) {
+      if (p < 0 || p >= planes.rows()) {
+        throw InvalidArgument("convex " + std::to_string(k) + " references plane " +
+                              std::to_string(p) + " of " + std::to_string(planes.rows()));
+      }
+      if (!planes.row(p).allFinite()) {
+        throw InvalidArgument("plane " + std::to_string(p) + " of convex " + std::to_string(k) +
+                              " is not finite");
+      }
+    }
+  }
+}
+
+// Summed positive excess of point x over the planes of a convex, with early exit once the
+// threshold is reached.
+inline bool InsideConvex(const Eigen::MatrixXf& planes, const std::vector<int>& ids, float x,
+                         float y, float z, float threshold) {
+  float sum = 0.f;
+  for (int p : ids) {
+    const float v = planes(p, 0) * x + planes(p, 1) * y + planes(p, 2) * z + planes(p, 3);
+    if (v > 0.f) {
+      sum += v;
+      if (sum >= threshold) return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
+                                       const std::vector<std::vector<int>>& convex_planes,
+                                       const Eigen::MatrixX3f& points, float inside_threshold) {
+  CheckInputs(planes, convex_planes);
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(points.rows()), 0);
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    for (const auto& ids : convex_planes) {
+      if (ids.empty()) continue;
+      if (InsideConvex(planes, ids, points(i, 0), points(i, 1), points(i, 2), inside_threshold)) {
+        out[static_cast<std::size_t>(i)] = 1;
+        break;
+      }
+    }
+  }
+  return out;
+}
+
+BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
+                             const std::vector<std::vector<int>>& convex_planes,
+                             const BspMeshOptions& options) {
+  CheckInputs(planes, convex_planes);
+  if (options.grid < 2 || options.grid > 256) {
+    throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
+  }
+  const int G = options.grid;
+  const std::size_t cells = static_cast<std::size_t>(G) * G * G;
+  auto coord = [G](int i) { return -1.0f + (2.0f * i + 1.0f) / static_cast<float>(G); };
+
+  // Exact polytope of every convex first: its bounding box limits the grid cells to test.
+  geometry::PolytopeOptions popt;
+  popt.bounds.min = geometry::Vec3::Constant(-options.bound);
+  popt.bounds.max = geometry::Vec3::Constant(options.bound);
+  const std::size_t C = convex_planes.size();
+  std::vector<geometry::Polytope> polys(C);
+  std::vector<std::vector<std::uint32_t>> inside(C);  // grid cells inside each convex
+  std::vector<int> count(cells, 0);
+  BspMeshResult result;
+  for (std::size_t k = 0; k < C; ++k) {
+    const auto& ids = convex_planes[k];
+    if (ids.empty()) continue;
+    std::vector<geometry::HalfSpace> hs;
+    hs.reserve(ids.size());
+    for (int p : ids) {
+      // The inside test tolerates a summed excess < threshold; the polytope is the exact
+      // zero-level set (like bspt), so cells are found from a box grown by one cell.
+      hs.push_back({geometry::Vec3(planes(p, 0), planes(p, 1), planes(p, 2)), planes(p, 3)});
+    }
+    polys[k] = geometry::IntersectHalfSpaces(hs, popt);
+    // Cell range to test: the polytope's box grown by one cell (or everything if empty,
+    // since a thin convex can still hold grid points within the tolerance).
+    int lo[3] = {0, 0, 0}, hi[3] = {G - 1, G - 1, G - 1};
+    if (!polys[k].empty()) {
+      geometry::AABB box;
+      for (const auto& v : polys[k].vertices) box.Extend(v);
+      for (int a = 0; a < 3; ++a) {
+        lo[a] = std::max(0, static_cast<int>(std::floor((box.min[a] + 1.0) * G / 2.0)) - 1);
+        hi[a] = std::min(G - 1, static_cast<int>(std::floor((box.max[a] + 1.0) * G / 2.0)) + 1);
+      }
+    }
+    for (int z = lo[2]; z <= hi[2]; ++z) {
+      for (int y = lo[1]; y <= hi[1]; ++y) {
+        for (int x = lo[0]; x <= hi[0]; ++x) {
+          if (InsideConvex(planes, ids, coord(x), coord(y), coord(z), options.inside_threshold)) {
+            const std::uint32_t cell = static_cast<std::uint32_t>(x + G * (y + G * z));
+            inside[k].push_back(cell);
+            ++count[cell];
+          }
+        }
+      }
+    }
+    if (!inside[k].empty()) ++result.nonempty_convexes;
+  }
+  // Greedy redundancy removal in convex index order.
+  for (std::size_t k = 0; k < C; ++k) {
+    if (inside[k].empty()) continue;
+    bool redundant = true;
+    for (std::uint32_t cell : inside[k]) {
+      if (count[cell] < 2) {
+        redundant = false;
+        break;
+      }
+    }
+    if (redundant) {
+      for (std::uint32_t cell : inside[k]) --count[cell];
+      continue;
+    }
+    if (polys[k].empty()) continue;  // holds grid points only within the tolerance
+    result.kept_convexes.push_back(static_cast<int>(k));
+    const geometry::TriangleMesh part = polys[k].ToMesh();
+    result.mesh.Append(part);
+    result.face_convex.insert(result.face_convex.end(), part.faces.size(), static_cast<int>(k));
+  }
+  return result;
+}
+
+}  // namespace dimr::pipeline

@@ -1,0 +1,227 @@
+#include "dimr/pipeline/shape_pool.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+#include <random>
+#include <set>
+#include <string>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::pipeline {
+namespace {
+
+constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'P', 'O', 'O', 'L'};
+constexpr std::uint32_t kVersion = 1;
+
+std::uint64_t Fnv1a(std::uint64_t h, const void* data, std::size_t n) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t i = 0; i < n; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+template <typename T>
+void Put(std::string* out, const T& v) {
+  out->append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+}  // namespace
+
+void ShapePool::Add(PoolEntry entry) {
+  if (latent_dim_ <= 0) throw InvalidArgument("ShapePool: latent_dim not set");
+  if (entry.code.size() != 2 * latent_dim_) {
+    throw InvalidArgument("ShapePool: code of '" + entry.model_id + "' has " +
+                          std::to_string(entry.code.size()) + " values, expected " +
+                          std::to_string(2 * latent_dim_));
+  }
+  if (!entry.code.allFinite()) {
+    throw InvalidArgument("ShapePool: code of '" + entry.model_id + "' is not finite");
+  }
+  for (const auto& e : entries_) {
+    if (e.model_id == entry.model_id) {
+      throw InvalidArgument("ShapePool: duplicate model id '" + entry.model_id + "'");
+    }
+  }
+  entries_.push_back(std::move(entry));
+}
+
+std::string ShapePool::ContentHash() const {
+  std::uint64_t h = 1469598103934665603ull;
+  h = Fnv1a(h, &latent_dim_, sizeof(latent_dim_));
+  for (const auto& e : entries_) {
+    h = Fnv1a(h, e.model_id.data(), e.model_id.size());
+    h = Fnv1a(h, &e.cad_class, sizeof(e.cad_class));
+    h = Fnv1a(h, e.code.data(), static_cast<std::size_t>(e.code.size()) * sizeof(float));
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+std::vector<PoolMatch> ShapePool::Nearest(const Eigen::VectorXf& code, int cad_class, int k) const {
+  if (code.size() != latent_dim_ && code.size() != 2 * latent_dim_) {
+    throw InvalidArgument("ShapePool::Nearest: query has " + std::to_string(code.size()) +
+                          " values, expected " + std::to_string(latent_dim_) + " or " +
+                          std::to_string(2 * latent_dim_));
+  }
+  const Eigen::VectorXf mu = code.head(latent_dim_);
+  std::vector<PoolMatch> all;
+  for (std::size_t i = 0; i < entries_.size(); ++i) {
+    if (entries_[i].cad_class != cad_class) continue;
+    all.push_back({static_cast<int>(i), (entries_[i].code.head(latent_dim_) - mu).norm()});
+  }
+  const std::size_t kk = std::min<std::size_t>(std::max(k, 0), all.size());
+  std::partial_sort(all.begin(), all.begin() + static_cast<std::ptrdiff_t>(kk), all.end(),
+                    [](const PoolMatch& a, const PoolMatch& b) {
+                      return a.distance != b.distance ? a.distance < b.distance : a.index < b.index;
+                    });
+  all.resize(kk);
+  return all;
+}
+
+Projection ShapePool::Project(const Eigen::VectorXf& code, int cad_class, int k) const {
+  if (code.size() != 2 * latent_dim_) {
+    throw InvalidArgument("ShapePool::Project: code must have " + std::to_string(2 * latent_dim_) +
+                          " values, got " + std::to_string(code.size()));
+  }
+  if (k < 1) throw InvalidArgument("ShapePool::Project: k must be >= 1");
+  const auto nn = Nearest(code, cad_class, k);
+  if (nn.empty()) {
+    throw InvalidArgument("ShapePool::Project: the pool has no entry of class " +
+                          std::to_string(cad_class));
+  }
+  Projection out;
+  for (const auto& m : nn) out.neighbors.push_back(m.index);
+  const Eigen::VectorXf x0 = entries_[nn[0].index].code;
+  if (nn.size() == 1) {
+    out.code = x0;
+    out.weights = {1.0};
+  } else {
+    const Eigen::Index m = static_cast<Eigen::Index>(nn.size()) - 1;
+    Eigen::MatrixXd A(code.size(), m);
+    for (Eigen::Index j = 0; j < m; ++j) {
+      A.col(j) = (entries_[nn[j + 1].index].code - x0).cast<double>();
+    }
+    const Eigen::VectorXd rhs = (code - x0).cast<double>();
+    // Least squares with rank detection: duplicate / collinear neighbours are handled.
+    const Eigen::VectorXd w = A.completeOrthogonalDecomposition().solve(rhs);
+    out.code = (x0.cast<double>() + A * w).cast<float>();
+    out.weights.assign(nn.size(), 0.0);
+    out.weights[0] = 1.0 - w.sum();
+    for (Eigen::Index j = 0; j < m; ++j) out.weights[j + 1] = w[j];
+  }
+  out.residual = (code - out.code).norm();
+  return out;
+}
+
+void ShapePool::Save(const std::string& path) const {
+  std::string out;
+  out.append(kMagic, sizeof(kMagic));
+  Put(&out, kVersion);
+  Put(&out, static_cast<std::int32_t>(latent_dim_));
+  Put(&out, static_cast<std::uint64_t>(entries_.size()));
+  const std::string hash = ContentHash();
+  out.append(hash);
+  for (const auto& e : entries_) {
+    Put(&out, static_cast<std::int32_t>(e.cad_class));
+    Put(&out, static_cast<std::uint32_t>(e.model_id.size()));
+    out.append(e.model_id);
+    out.append(reinterpret_cast<const char*>(e.code.data()),
+               static_cast<std::size_t>(e.code.size()) * sizeof(float));
+  }
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) throw Error("cannot open '" + path + "' for writing");
+  f.write(out.data(), static_cast<std::streamsize>(out.size()));
+  if (!f) throw Error("failed writing '" + path + "'");
+}
+
+ShapePool ShapePool::Load(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ParseError(path, "cannot open file");
+  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  std::size_t pos = 0;
+  auto need = [&](std::size_t n, const std::string& what) {
+    if (n > b.size() - pos) throw ParseError(path, what + ": truncated file");
+  };
+  auto get = [&](auto* v, const std::string& what) {
+    need(sizeof(*v), what);
+    std::memcpy(v, b.data() + pos, sizeof(*v));
+    pos += sizeof(*v);
+  };
+  need(sizeof(kMagic), "header");
+  if (std::memcmp(b.data(), kMagic, sizeof(kMagic)) != 0) {
+    throw ParseError(path, "not a dimr shape pool (bad magic)");
+  }
+  pos += sizeof(kMagic);
+  std::uint32_t version = 0;
+  get(&version, "version");
+  if (version != kVersion)
+    throw ParseError(path, "unsupported pool version " + std::to_string(version));
+  std::int32_t dim = 0;
+  get(&dim, "latent size");
+  if (dim < 1 || dim > 65536)
+    throw ParseError(path, "latent size " + std::to_string(dim) + " out of range");
+  std::uint64_t count = 0;
+  get(&count, "entry count");
+  const std::size_t code_bytes = static_cast<std::size_t>(2 * dim) * sizeof(float);
+  if (count > b.size() / (code_bytes + 8)) {
+    throw ParseError(path,
+                     "claims " + std::to_string(count) + " entries, more than the file holds");
+  }
+  need(16, "content hash");
+  const std::string stored_hash = b.substr(pos, 16);
+  pos += 16;
+  ShapePool pool(dim);
+  for (std::uint64_t i = 0; i < count; ++i) {
+    const std::string where = "entry " + std::to_string(i);
+    PoolEntry e;
+    std::int32_t cls = 0;
+    std::uint32_t len = 0;
+    get(&cls, where + " class");
+    get(&len, where + " id length");
+    need(len, where + " id");
+    e.model_id = b.substr(pos, len);
+    pos += len;
+    e.cad_class = cls;
+    need(code_bytes, where + " code");
+    e.code.resize(2 * dim);
+    std::memcpy(e.code.data(), b.data() + pos, code_bytes);
+    pos += code_bytes;
+    try {
+      pool.Add(std::move(e));
+    } catch (const InvalidArgument& err) {
+      throw ParseError(path, where + ": " + err.what());
+    }
+  }
+  if (pos != b.size()) throw ParseError(path, "trailing bytes after the last entry");
+  if (pool.ContentHash() != stored_hash) {
+    throw ParseError(path, "content hash mismatch (stored " + stored_hash + ", computed " +
+                               pool.ContentHash() + "): the file is corrupt");
+  }
+  return pool;
+}
+
+Eigen::VectorXf InterpolateCodes(const Eigen::VectorXf& a, const Eigen::VectorXf& b, double t) {
+  if (a.size() != b.size()) throw InvalidArgument("InterpolateCodes: size mismatch");
+  return ((1.0 - t) * a.cast<double>() + t * b.cast<double>()).cast<float>();
+}
+
+Eigen::VectorXf SampleCode(const Eigen::VectorXf& code, std::uint64_t seed) {
+  if (code.size() % 2 != 0) throw InvalidArgument("SampleCode: code must be [mu, logvar]");
+  const Eigen::Index d = code.size() / 2;
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  Eigen::VectorXf out = code;
+  for (Eigen::Index i = 0; i < d; ++i)
+    out[i] = code[i] + normal(rng) * std::exp(0.5f * code[d + i]);
+  return out;
+}
+
+}  // namespace dimr::pipeline

@@ -1,0 +1,454 @@
+// BSP-CVAE commands: `dimr bsp prepare|eval|decode|interpolate`, `dimr train bsp`,
+// `dimr encode-pool`, `dimr bench bsp`.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dimr/geometry/error.h"
+#include "dimr/geometry/ply_io.h"
+#include "dimr/nn/bsp_model.h"
+#include "dimr/pipeline/bsp_data.h"
+#include "dimr/pipeline/bsp_mesher.h"
+#include "dimr/pipeline/shape_pool.h"
+#include "tools/command_registry.h"
+#include "tools/sha256.h"
+
+#ifdef DIMR_HAVE_DATA
+#include "dimr/data/cad_library.h"
+#include "dimr/data/labels.h"
+#endif
+
+namespace dimr::tools {
+namespace {
+
+const char* kClassNames[8] = {"table",     "chair",   "bookshelf", "sofa",
+                              "trash_bin", "cabinet", "display",   "bathtub"};
+
+std::string CommandLine(const CLI::App& app) {
+  std::string out = "dimr";
+  std::vector<const CLI::App*> chain;
+  for (const CLI::App* a = &app; a && a->get_parent(); a = a->get_parent()) chain.push_back(a);
+  std::reverse(chain.begin(), chain.end());
+  for (const CLI::App* a : chain) out += " " + a->get_name();
+  for (const CLI::Option* o : app.get_options()) {
+    if (o->count() == 0 || o->get_name() == "--help") continue;
+    out += " " + o->get_name();
+    for (const auto& r : o->results()) out += " " + r;
+  }
+  return out;
+}
+
+std::vector<int> ParseClasses(const std::string& text) {
+  std::vector<int> out;
+  if (text == "all") {
+    for (int c = 0; c < 8; ++c) out.push_back(c);
+    return out;
+  }
+  std::istringstream in(text);
+  std::string name;
+  while (std::getline(in, name, ',')) {
+    int found = -1;
+    for (int c = 0; c < 8; ++c) {
+      if (name == kClassNames[c]) found = c;
+    }
+    if (found < 0) throw InvalidArgument("unknown class '" + name + "'");
+    out.push_back(found);
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------- prepare
+struct PrepareArgs {
+  std::string out;
+  int per_class = 100;
+  std::uint64_t seed = 1;
+  std::string classes = "all";
+  int resolution = 32;
+};
+
+void RunPrepare(const PrepareArgs& a) {
+#ifdef DIMR_HAVE_DATA
+  nn::BspDataset data;
+  data.resolution = a.resolution;
+  pipeline::BspSampleOptions opt;
+  opt.resolution = a.resolution;
+  const auto classes = ParseClasses(a.classes);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::size_t done = 0;
+  const std::size_t total = classes.size() * static_cast<std::size_t>(a.per_class);
+  for (int c : classes) {
+    for (int i = 0; i < a.per_class; ++i) {
+      // Model seeds: disjoint streams per (seed, class) so train/val/test never share models.
+      const std::uint64_t model_seed =
+          a.seed * 1000003ull + static_cast<std::uint64_t>(c) * 7919ull * 1000003ull + i;
+      const data::CadModel m = data::GenerateCadModel(c, model_seed);
+      data.samples.push_back(
+          pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, model_seed ^ 0x9e3779b97f4a7c15ull));
+      ++done;
+      std::fprintf(stderr, "\rprepare: %zu/%zu shapes", done, total);
+    }
+  }
+  std::fprintf(stderr, "\n");
+  data.Save(a.out);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("wrote %zu samples (R=%d) to %s in %.1f s\n", data.samples.size(), a.resolution,
+              a.out.c_str(), secs);
+#else
+  (void)a;
+  throw Error("this dimr was built without the data layer (procedural CAD library)");
+#endif
+}
+
+// ---------------------------------------------------------------- train
+struct TrainArgs {
+  std::string train, val, out, config = "cpu", epochs = "60,30,0", device = "cpu";
+  int batch = 16, points = 1024, threads = 0, checkpoint_every = 5;
+  double lr = 1e-4, kl = 0.01, max_minutes = 0;
+  std::uint64_t seed = 1;
+  bool fp16 = true;
+  bool fp32 = false;
+};
+
+nn::BspConfig ConfigFromArg(const std::string& text) {
+  if (text == "cpu") return nn::BspConfig::CpuDefault();
+  if (text == "reference") return nn::BspConfig::Reference();
+  return nn::BspConfig::FromString(text);
+}
+
+void WriteModelCard(const std::string& dir, const nn::BspModel& model, const TrainArgs& a,
+                    const std::string& command, const std::vector<nn::BspEpochLog>& logs,
+                    double val_iou, const std::string& weights) {
+  std::ofstream y(dir + "/model.yaml");
+  y << "name: bsp_cvae\n";
+  y << "description: BSP-CVAE shape autoencoder (class-conditioned), dimr-method.md sections 5-6\n";
+  y << "architecture: \"" << model.config().ToString() << "\"\n";
+  y << "parameters: " << model.NumParameters() << "\n";
+  y << "phase: " << model.phase() << "\n";
+  y << "label_set: [table, chair, bookshelf, sofa, trash_bin, cabinet, display, bathtub]\n";
+  y << "training:\n";
+  y << "  command: \"" << command << "\"\n";
+  y << "  seed: " << a.seed << "\n";
+  y << "  train_data: \"" << a.train << "\"\n";
+  y << "  val_data: \"" << a.val << "\"\n";
+  y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
+  y << "  device: " << a.device << "\n";
+  y << "metrics:\n";
+  y << "  val_volumetric_iou_32: " << val_iou << "\n";
+  if (!logs.empty()) y << "  final_recon_loss: " << logs.back().recon_loss << "\n";
+  y << "weights:\n";
+  y << "  file: " << std::filesystem::path(weights).filename().string() << "\n";
+  y << "  dtype: " << (a.fp16 ? "float16" : "float32") << "\n";
+  y << "  sha256: " << Sha256File(weights) << "\n";
+}
+
+void RunTrain(const TrainArgs& a, const std::string& command) {
+  const nn::BspConfig config = ConfigFromArg(a.config);
+  nn::BspTrainOptions opt;
+  {
+    std::istringstream in(a.epochs);
+    std::string tok;
+    std::vector<int> e;
+    while (std::getline(in, tok, ',')) e.push_back(std::stoi(tok));
+    if (e.size() != 3 || *std::min_element(e.begin(), e.end()) < 0) {
+      throw InvalidArgument("--epochs must be three non-negative numbers 'phase0,phase1,phase2'");
+    }
+    opt.epochs_phase0 = e[0];
+    opt.epochs_phase1 = e[1];
+    opt.epochs_phase2 = e[2];
+  }
+  opt.batch_size = a.batch;
+  opt.points_per_sample = a.points;
+  opt.learning_rate = a.lr;
+  opt.kl_weight = a.kl;
+  opt.seed = a.seed;
+  opt.threads = a.threads;
+  opt.device = a.device;
+  opt.max_minutes = a.max_minutes;
+  opt.checkpoint_every = a.checkpoint_every;
+  std::filesystem::create_directories(a.out);
+  opt.checkpoint_path = a.out + "/checkpoint.pt";
+  const nn::BspDataset train = nn::BspDataset::Load(a.train);
+  const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
+  nn::BspModel model(config, a.seed);
+  std::printf("BSP-CVAE %s, %lld parameters, %zu training shapes, %zu validation shapes\n",
+              config.ToString().c_str(), static_cast<long long>(model.NumParameters()),
+              train.samples.size(), val.samples.size());
+  std::ofstream csv(a.out + "/train_log.csv", std::ios::app);
+  csv << "epoch,phase,recon_loss,kl,beta,val_iou,seconds\n";
+  const auto logs = model.Train(train, val, opt, [&](const nn::BspEpochLog& e) {
+    std::printf("epoch %4d phase %d  recon %.5f  kl %.4f  beta %.4f  val_iou %s  %.1f s\n", e.epoch,
+                e.phase, e.recon_loss, e.kl, e.beta,
+                e.val_iou < 0 ? "-" : std::to_string(e.val_iou).c_str(), e.seconds);
+    std::fflush(stdout);
+    csv << e.epoch << "," << e.phase << "," << e.recon_loss << "," << e.kl << "," << e.beta << ","
+        << e.val_iou << "," << e.seconds << "\n";
+    csv.flush();
+  });
+  const double val_iou = val.samples.empty() ? -1.0 : model.EvaluateIoU(val);
+  const std::string weights = a.out + "/bsp.pt";
+  model.Save(weights, a.fp16);
+  WriteModelCard(a.out, model, a, command, logs, val_iou, weights);
+  std::printf("saved %s (val IoU %.4f), model card %s/model.yaml\n", weights.c_str(), val_iou,
+              a.out.c_str());
+}
+
+// ---------------------------------------------------------------- eval / decode
+struct EvalArgs {
+  std::string model, data, mesh_dir;
+  int limit = 0;
+};
+
+void RunEval(const EvalArgs& a) {
+  const nn::BspModel model = nn::BspModel::Load(a.model);
+  nn::BspDataset data = nn::BspDataset::Load(a.data);
+  if (a.limit > 0 && data.samples.size() > static_cast<std::size_t>(a.limit)) {
+    data.samples.resize(static_cast<std::size_t>(a.limit));
+  }
+  const Eigen::MatrixXf codes = model.EncodeAll(data);
+  const auto convexes = model.ConvexPlanes();
+  const int R = data.resolution;
+  Eigen::MatrixX3f centers(R * R * R, 3);
+  for (int k = 0; k < R; ++k)
+    for (int j = 0; j < R; ++j)
+      for (int i = 0; i < R; ++i)
+        centers.row(i + R * (j + R * k)) << -1.0f + (2.0f * i + 1) / R, -1.0f + (2.0f * j + 1) / R,
+            -1.0f + (2.0f * k + 1) / R;
+  std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
+  std::vector<int> n(8, 0);
+  if (!a.mesh_dir.empty()) std::filesystem::create_directories(a.mesh_dir);
+  for (std::size_t s = 0; s < data.samples.size(); ++s) {
+    const auto& sample = data.samples[s];
+    const Eigen::VectorXf mu =
+        codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
+    const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
+    const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
+    std::size_t inter = 0, uni = 0;
+    for (std::size_t i = 0; i < occ.size(); ++i) {
+      inter += occ[i] && target[i];
+      uni += occ[i] || target[i];
+    }
+    const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes);
+    const int c = sample.cad_class;
+    iou_sum[c] += uni ? static_cast<double>(inter) / uni : 1.0;
+    faces_sum[c] += static_cast<double>(mesh.mesh.faces.size());
+    convex_sum[c] += static_cast<double>(mesh.kept_convexes.size());
+    ++n[c];
+    if (!a.mesh_dir.empty()) {
+      geometry::WritePly(a.mesh_dir + "/" + std::to_string(s) + "_" + kClassNames[c] + "_" +
+                             sample.model_id + ".ply",
+                         mesh.mesh);
+    }
+    std::fprintf(stderr, "\reval: %zu/%zu", s + 1, data.samples.size());
+  }
+  std::fprintf(stderr, "\n");
+  std::printf("| class | shapes | IoU@32^3 | kept convexes | triangles |\n|---|---|---|---|---|\n");
+  double total = 0;
+  int count = 0;
+  for (int c = 0; c < 8; ++c) {
+    if (!n[c]) continue;
+    std::printf("| %s | %d | %.4f | %.1f | %.0f |\n", kClassNames[c], n[c], iou_sum[c] / n[c],
+                convex_sum[c] / n[c], faces_sum[c] / n[c]);
+    total += iou_sum[c];
+    count += n[c];
+  }
+  std::printf("| **all** | %d | **%.4f** | | |\n", count, count ? total / count : 0.0);
+}
+
+// ---------------------------------------------------------------- encode-pool
+struct PoolArgs {
+  std::string model, data, out;
+};
+
+void RunEncodePool(const PoolArgs& a) {
+  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const nn::BspDataset data = nn::BspDataset::Load(a.data);
+  const Eigen::MatrixXf codes = model.EncodeAll(data);
+  pipeline::ShapePool pool(model.config().latent_dim);
+  for (std::size_t s = 0; s < data.samples.size(); ++s) {
+    pool.Add({data.samples[s].model_id, data.samples[s].cad_class,
+              codes.row(static_cast<Eigen::Index>(s)).transpose()});
+  }
+  pool.Save(a.out);
+  std::printf("encoded %zu CAD models into %s (content hash %s)\n", pool.size(), a.out.c_str(),
+              pool.ContentHash().c_str());
+}
+
+// ---------------------------------------------------------------- interpolate
+struct InterpArgs {
+  std::string model, data, out_dir;
+  int a = 0, b = 1, steps = 5;
+};
+
+void RunInterpolate(const InterpArgs& a) {
+  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const nn::BspDataset data = nn::BspDataset::Load(a.data);
+  if (a.a < 0 || a.b < 0 || static_cast<std::size_t>(std::max(a.a, a.b)) >= data.samples.size()) {
+    throw InvalidArgument("--a/--b out of range (dataset has " +
+                          std::to_string(data.samples.size()) + " samples)");
+  }
+  const auto& sa = data.samples[static_cast<std::size_t>(a.a)];
+  const auto& sb = data.samples[static_cast<std::size_t>(a.b)];
+  if (sa.cad_class != sb.cad_class) throw InvalidArgument("--a and --b must be of the same class");
+  const auto za = model.Encode(sa.grid, sa.cad_class).first;
+  const auto zb = model.Encode(sb.grid, sb.cad_class).first;
+  const auto convexes = model.ConvexPlanes();
+  std::filesystem::create_directories(a.out_dir);
+  for (int i = 0; i < a.steps; ++i) {
+    const double t = a.steps == 1 ? 0.0 : static_cast<double>(i) / (a.steps - 1);
+    const Eigen::VectorXf z = pipeline::InterpolateCodes(za, zb, t);
+    const auto mesh = pipeline::ExtractBspMesh(model.DecodePlanes(z, sa.cad_class), convexes);
+    const std::string path = a.out_dir + "/interp_" + std::to_string(i) + ".ply";
+    geometry::WritePly(path, mesh.mesh);
+    std::printf("t=%.2f  %zu triangles  %s\n", t, mesh.mesh.faces.size(), path.c_str());
+  }
+}
+
+// ---------------------------------------------------------------- bench
+struct BenchArgs {
+  std::string model, data, json;
+  int count = 20;
+};
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v.size() % 2 ? v[v.size() / 2] : 0.5 * (v[v.size() / 2 - 1] + v[v.size() / 2]);
+}
+
+void RunBench(const BenchArgs& a) {
+  const nn::BspModel model = nn::BspModel::Load(a.model);
+  nn::BspDataset data = nn::BspDataset::Load(a.data);
+  if (data.samples.size() > static_cast<std::size_t>(a.count)) data.samples.resize(a.count);
+  if (data.samples.empty()) throw InvalidArgument("bench: empty dataset");
+  using Clock = std::chrono::steady_clock;
+  auto t0 = Clock::now();
+  const Eigen::MatrixXf codes = model.EncodeAll(data);
+  const double encode_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  const auto convexes = model.ConvexPlanes();
+  std::vector<double> decode_ms, mesh_ms, total_ms, tris;
+  for (std::size_t s = 0; s < data.samples.size(); ++s) {
+    const Eigen::VectorXf mu =
+        codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
+    auto t1 = Clock::now();
+    const Eigen::MatrixXf planes = model.DecodePlanes(mu, data.samples[s].cad_class);
+    auto t2 = Clock::now();
+    const auto mesh = pipeline::ExtractBspMesh(planes, convexes);
+    auto t3 = Clock::now();
+    decode_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
+    mesh_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t2).count());
+    total_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t1).count());
+    tris.push_back(static_cast<double>(mesh.mesh.faces.size()));
+  }
+  std::printf("BSP decode + mesh extraction, %zu objects, model %s\n", data.samples.size(),
+              model.config().ToString().c_str());
+  std::printf("| step | median ms |\n|---|---|\n");
+  std::printf("| decoder (latent -> planes) | %.2f |\n", Median(decode_ms));
+  std::printf("| mesh extraction (grid, selection, polytopes) | %.2f |\n", Median(mesh_ms));
+  std::printf("| total per object | %.2f |\n", Median(total_ms));
+  std::printf("| triangles per object (median) | %.0f |\n", Median(tris));
+  std::printf("encoding throughput: %.1f shapes/s (%zu shapes in %.2f s)\n",
+              data.samples.size() / encode_s, data.samples.size(), encode_s);
+  if (!a.json.empty()) {
+    std::ofstream j(a.json);
+    j << "{\"objects\": " << data.samples.size() << ", \"decode_ms_median\": " << Median(decode_ms)
+      << ", \"mesh_ms_median\": " << Median(mesh_ms)
+      << ", \"total_ms_median\": " << Median(total_ms) << ", \"triangles_median\": " << Median(tris)
+      << ", \"encode_shapes_per_s\": " << data.samples.size() / encode_s << "}\n";
+  }
+}
+
+// ---------------------------------------------------------------- registration
+void SetupPrepare(CLI::App& app) {
+  auto a = std::make_shared<PrepareArgs>();
+  app.add_option("--out", a->out, "output dataset file")->required();
+  app.add_option("--per-class", a->per_class, "procedural CAD models per class")
+      ->check(CLI::Range(1, 100000));
+  app.add_option("--seed", a->seed,
+                 "seed of the model stream (use different seeds for train/val/test)");
+  app.add_option("--classes", a->classes, "'all' or a comma list of class names");
+  app.add_option("--resolution", a->resolution, "encoder grid resolution")
+      ->check(CLI::IsMember({8, 16, 32, 64, 128}));
+  app.callback([a]() { RunPrepare(*a); });
+}
+
+void SetupTrain(CLI::App& app) {
+  auto a = std::make_shared<TrainArgs>();
+  app.add_option("--train", a->train, "training dataset (dimr bsp prepare)")->required();
+  app.add_option("--val", a->val, "validation dataset");
+  app.add_option("--out", a->out, "output model directory")->required();
+  app.add_option("--config", a->config, "cpu | reference | 'key=value ...'");
+  app.add_option("--epochs", a->epochs, "epochs of phases 0,1,2");
+  app.add_option("--batch", a->batch)->check(CLI::Range(2, 4096));
+  app.add_option("--points", a->points, "query points per shape and step")
+      ->check(CLI::Range(2, 1 << 20));
+  app.add_option("--lr", a->lr);
+  app.add_option("--kl", a->kl, "final KL weight (linear annealing)");
+  app.add_option("--seed", a->seed);
+  app.add_option("--threads", a->threads, "intra-op threads (0 = default)");
+  app.add_option("--device", a->device, "cpu | cuda")->check(CLI::IsMember({"cpu", "cuda"}));
+  app.add_option("--max-minutes", a->max_minutes, "stop after this many minutes (checkpointed)");
+  app.add_option("--checkpoint-every", a->checkpoint_every);
+  app.add_flag("--fp32", a->fp32, "store the final weights in fp32 instead of fp16");
+  app.callback([a, &app]() {
+    a->fp16 = !a->fp32;
+    RunTrain(*a, CommandLine(app));
+  });
+}
+
+void SetupEval(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  app.add_option("--model", a->model)->required();
+  app.add_option("--data", a->data)->required();
+  app.add_option("--mesh-dir", a->mesh_dir, "write the decoded meshes here");
+  app.add_option("--limit", a->limit, "evaluate at most this many shapes");
+  app.callback([a]() { RunEval(*a); });
+}
+
+void SetupPool(CLI::App& app) {
+  auto a = std::make_shared<PoolArgs>();
+  app.add_option("--model", a->model)->required();
+  app.add_option("--data", a->data, "dataset of the CAD models to encode")->required();
+  app.add_option("--out", a->out)->required();
+  app.callback([a]() { RunEncodePool(*a); });
+}
+
+void SetupInterp(CLI::App& app) {
+  auto a = std::make_shared<InterpArgs>();
+  app.add_option("--model", a->model)->required();
+  app.add_option("--data", a->data)->required();
+  app.add_option("--a", a->a);
+  app.add_option("--b", a->b);
+  app.add_option("--steps", a->steps)->check(CLI::Range(1, 100));
+  app.add_option("--out-dir", a->out_dir)->required();
+  app.callback([a]() { RunInterpolate(*a); });
+}
+
+void SetupBench(CLI::App& app) {
+  auto a = std::make_shared<BenchArgs>();
+  app.add_option("--model", a->model)->required();
+  app.add_option("--data", a->data)->required();
+  app.add_option("--count", a->count)->check(CLI::Range(1, 100000));
+  app.add_option("--json", a->json);
+  app.callback([a]() { RunBench(*a); });
+}
+
+const Registrar kPrepare("bsp", "prepare",
+                         "Build a BSP-CVAE training set from the procedural CAD library",
+                         &SetupPrepare);
+const Registrar kEval("bsp", "eval", "Volumetric IoU of decoded vs. original shapes", &SetupEval);
+const Registrar kInterp("bsp", "interpolate", "Decode meshes along a latent interpolation",
+                        &SetupInterp);
+const Registrar kTrain("train", "bsp", "Train the BSP-CVAE shape autoencoder", &SetupTrain);
+const Registrar kPool("", "encode-pool", "Encode CAD models into the latent shape pool",
+                      &SetupPool);
+const Registrar kBench("bench", "bsp", "Decode + mesh extraction time per object", &SetupBench);
+
+}  // namespace
+}  // namespace dimr::tools

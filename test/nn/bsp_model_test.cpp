@@ -1,0 +1,184 @@
+#include "dimr/nn/bsp_model.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+namespace {
+
+BspConfig TinyConfig() {
+  BspConfig c;
+  c.resolution = 8;
+  c.latent_dim = 8;
+  c.encoder_width = 4;
+  c.num_planes = 24;
+  c.num_convexes = 4;
+  c.num_classes = 2;
+  c.decoder_widths = {32};
+  return c;
+}
+
+// An axis-aligned box [-h, h] as a sample: grid + analytic inside/outside points.
+BspSample BoxSample(const Eigen::Vector3f& h, int cls, std::uint64_t seed) {
+  const int R = 8;
+  BspSample s;
+  s.cad_class = cls;
+  s.model_id = "box" + std::to_string(seed);
+  s.grid.assign(R * R * R, 0);
+  for (int k = 0; k < R; ++k)
+    for (int j = 0; j < R; ++j)
+      for (int i = 0; i < R; ++i) {
+        const Eigen::Vector3f c(-1.f + (2.f * i + 1) / R, -1.f + (2.f * j + 1) / R,
+                                -1.f + (2.f * k + 1) / R);
+        s.grid[i + R * (j + R * k)] = (c.array().abs() <= h.array()).all();
+      }
+  s.iou_grid = s.grid;
+  std::mt19937 rng(static_cast<unsigned>(seed));
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  while (s.inside_points.size() < 3 * 200 || s.outside_points.size() < 3 * 200) {
+    const Eigen::Vector3f p(u(rng), u(rng), u(rng));
+    auto& dst = (p.array().abs() <= h.array()).all() ? s.inside_points : s.outside_points;
+    if (dst.size() >= 3 * 200) continue;
+    dst.insert(dst.end(), {p.x(), p.y(), p.z()});
+  }
+  return s;
+}
+
+BspDataset TinyData() {
+  BspDataset d;
+  d.resolution = 8;
+  d.samples.push_back(BoxSample({0.5f, 0.5f, 0.5f}, 0, 1));
+  d.samples.push_back(BoxSample({0.8f, 0.3f, 0.4f}, 0, 2));
+  d.samples.push_back(BoxSample({0.3f, 0.7f, 0.6f}, 1, 3));
+  d.samples.push_back(BoxSample({0.6f, 0.6f, 0.2f}, 1, 4));
+  return d;
+}
+
+TEST(BspConfig, ValidateNamesTheKeyAndRoundTrips) {
+  BspConfig c = TinyConfig();
+  EXPECT_NO_THROW(c.Validate());
+  EXPECT_EQ(BspConfig::FromString(c.ToString()).ToString(), c.ToString());
+  c.resolution = 12;
+  try {
+    c.Validate();
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("BspConfig.resolution"), std::string::npos);
+  }
+  EXPECT_THROW(BspConfig::FromString("resolution=32 bogus=1"), InvalidArgument);
+  const BspConfig ref = BspConfig::Reference();
+  EXPECT_EQ(ref.resolution, 64);
+  EXPECT_EQ(ref.num_planes, 4096);
+  EXPECT_EQ(ref.num_convexes, 256);
+}
+
+TEST(BspModel, DecoderIsDeterministicAndShaped) {
+  BspModel model(TinyConfig(), 7);
+  Eigen::VectorXf z = Eigen::VectorXf::LinSpaced(8, -1.f, 1.f);
+  const Eigen::MatrixXf a = model.DecodePlanes(z, 1);
+  const Eigen::MatrixXf b = model.DecodePlanes(z, 1);
+  ASSERT_EQ(a.rows(), 24);
+  ASSERT_EQ(a.cols(), 4);
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.f);
+  const Eigen::MatrixXf c = model.DecodePlanes(z, 0);
+  EXPECT_GT((a - c).cwiseAbs().maxCoeff(), 1e-6f) << "class conditioning has no effect";
+  // Same seed, same initial weights.
+  BspModel twin(TinyConfig(), 7);
+  EXPECT_EQ((twin.DecodePlanes(z, 1) - a).cwiseAbs().maxCoeff(), 0.f);
+  EXPECT_THROW(model.DecodePlanes(Eigen::VectorXf::Zero(5), 0), InvalidArgument);
+  EXPECT_THROW(model.DecodePlanes(z, 2), InvalidArgument);
+}
+
+TEST(BspModel, TinyTrainingLowersTheLoss) {
+  BspModel model(TinyConfig(), 3);
+  BspTrainOptions opt;
+  opt.epochs_phase0 = 40;
+  opt.epochs_phase1 = 0;
+  opt.batch_size = 4;
+  opt.points_per_sample = 256;
+  opt.learning_rate = 3e-3;
+  opt.kl_weight = 1e-3;
+  opt.threads = 1;
+  opt.seed = 5;
+  const BspDataset data = TinyData();
+  const auto logs = model.Train(data, BspDataset(), opt);
+  ASSERT_EQ(logs.size(), 40u);
+  // Average of the first and last 5 epochs: the reconstruction loss must drop clearly.
+  double first = 0, last = 0;
+  for (int i = 0; i < 5; ++i) {
+    first += logs[i].recon_loss;
+    last += logs[logs.size() - 1 - i].recon_loss;
+  }
+  EXPECT_LT(last, 0.7 * first) << "first " << first / 5 << " last " << last / 5;
+}
+
+TEST(BspModel, SaveLoadRoundTripAndCorruptFiles) {
+  const std::string dir = ::testing::TempDir() + "/bsp_io";
+  std::filesystem::create_directories(dir);
+  BspModel model(TinyConfig(), 11);
+  const BspDataset data = TinyData();
+  const Eigen::MatrixXf codes = model.EncodeAll(data);
+  model.Save(dir + "/m.pt");
+  const BspModel back = BspModel::Load(dir + "/m.pt");
+  EXPECT_EQ(back.config().ToString(), model.config().ToString());
+  EXPECT_LT((back.EncodeAll(data) - codes).cwiseAbs().maxCoeff(), 1e-6f);
+  EXPECT_EQ(back.ConvexPlanes(), model.ConvexPlanes());
+  // fp16 storage: close, not exact.
+  model.Save(dir + "/h.pt", /*half=*/true);
+  const BspModel half = BspModel::Load(dir + "/h.pt");
+  EXPECT_LT((half.EncodeAll(data) - codes).cwiseAbs().maxCoeff(), 5e-2f);
+  EXPECT_LT(std::filesystem::file_size(dir + "/h.pt"), std::filesystem::file_size(dir + "/m.pt"));
+  // Truncated file.
+  {
+    std::ifstream in(dir + "/m.pt", std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    std::ofstream(dir + "/t.pt", std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  EXPECT_THROW(BspModel::Load(dir + "/t.pt"), ParseError);
+  std::ofstream(dir + "/g.pt") << "garbage";
+  EXPECT_THROW(BspModel::Load(dir + "/g.pt"), ParseError);
+  EXPECT_THROW(BspModel::Load(dir + "/missing.pt"), ParseError);
+  // A model of another configuration loads with its own stored configuration.
+  BspConfig other = TinyConfig();
+  other.num_planes = 32;
+  BspModel(other, 1).Save(dir + "/o.pt");
+  EXPECT_NO_THROW(BspModel::Load(dir + "/o.pt"));
+}
+
+TEST(BspDataset, RoundTripAndTruncation) {
+  const std::string dir = ::testing::TempDir() + "/bsp_data";
+  std::filesystem::create_directories(dir);
+  const BspDataset data = TinyData();
+  data.Save(dir + "/d.bin");
+  const BspDataset back = BspDataset::Load(dir + "/d.bin");
+  ASSERT_EQ(back.samples.size(), data.samples.size());
+  for (std::size_t i = 0; i < data.samples.size(); ++i) {
+    EXPECT_EQ(back.samples[i].grid, data.samples[i].grid);
+    EXPECT_EQ(back.samples[i].iou_grid, data.samples[i].iou_grid);
+    EXPECT_EQ(back.samples[i].inside_points, data.samples[i].inside_points);
+    EXPECT_EQ(back.samples[i].outside_points, data.samples[i].outside_points);
+    EXPECT_EQ(back.samples[i].model_id, data.samples[i].model_id);
+    EXPECT_EQ(back.samples[i].cad_class, data.samples[i].cad_class);
+  }
+  std::ifstream in(dir + "/d.bin", std::ios::binary);
+  std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  for (std::size_t cut : {std::size_t{3}, std::size_t{20}, bytes.size() / 2, bytes.size() - 1}) {
+    std::ofstream(dir + "/cut.bin", std::ios::binary) << bytes.substr(0, cut);
+    try {
+      BspDataset::Load(dir + "/cut.bin");
+      FAIL() << "cut at " << cut;
+    } catch (const ParseError& e) {
+      EXPECT_NE(std::string(e.what()).find("cut.bin"), std::string::npos);
+    }
+  }
+}
+
+}  // namespace
+}  // namespace dimr::nn

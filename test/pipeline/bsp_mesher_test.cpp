@@ -1,0 +1,110 @@
+#include "dimr/pipeline/bsp_mesher.h"
+
+#include <gtest/gtest.h>
+
+#include <map>
+#include <random>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::pipeline {
+namespace {
+
+// Appends the 6 planes of the box [lo, hi]^3 (inside iff n.x + d <= 0).
+void AddBox(Eigen::MatrixXf* planes, std::vector<int>* ids, const Eigen::Vector3f& lo,
+            const Eigen::Vector3f& hi) {
+  for (int a = 0; a < 3; ++a) {
+    Eigen::Vector4f p = Eigen::Vector4f::Zero();
+    p[a] = 1;
+    p[3] = -hi[a];  // x - hi <= 0
+    planes->conservativeResize(planes->rows() + 1, 4);
+    planes->row(planes->rows() - 1) = p.transpose();
+    ids->push_back(static_cast<int>(planes->rows() - 1));
+    p = Eigen::Vector4f::Zero();
+    p[a] = -1;
+    p[3] = lo[a];  // lo - x <= 0
+    planes->conservativeResize(planes->rows() + 1, 4);
+    planes->row(planes->rows() - 1) = p.transpose();
+    ids->push_back(static_cast<int>(planes->rows() - 1));
+  }
+}
+
+struct Scene {
+  Eigen::MatrixXf planes{0, 4};
+  std::vector<std::vector<int>> convexes{4};
+};
+
+Scene MakeScene() {
+  Scene s;
+  AddBox(&s.planes, &s.convexes[0], Eigen::Vector3f::Constant(-0.5f),
+         Eigen::Vector3f::Constant(0.5f));
+  AddBox(&s.planes, &s.convexes[1], Eigen::Vector3f::Constant(-0.2f),
+         Eigen::Vector3f::Constant(0.2f));
+  AddBox(&s.planes, &s.convexes[2], Eigen::Vector3f::Constant(0.3f),
+         Eigen::Vector3f::Constant(0.9f));
+  // Contradictory: x <= -0.5 and x >= 0.5.
+  s.planes.conservativeResize(s.planes.rows() + 2, 4);
+  s.planes.row(s.planes.rows() - 2) << 1, 0, 0, 0.5f;
+  s.planes.row(s.planes.rows() - 1) << -1, 0, 0, 0.5f;
+  s.convexes[3] = {static_cast<int>(s.planes.rows() - 2), static_cast<int>(s.planes.rows() - 1)};
+  return s;
+}
+
+TEST(BspMesher, KeepsNonRedundantConvexesAsClosedPolytopes) {
+  const Scene s = MakeScene();
+  const BspMeshResult r = ExtractBspMesh(s.planes, s.convexes);
+  EXPECT_EQ(r.nonempty_convexes, 3);
+  ASSERT_EQ(r.kept_convexes, (std::vector<int>{0, 2}));
+  // Sum of the two closed parts (overlap counted twice, as the reference's concatenation).
+  EXPECT_NEAR(r.mesh.SignedVolume(), 1.0 + 0.6 * 0.6 * 0.6, 1e-5);
+  EXPECT_NEAR(r.mesh.SurfaceArea(), 6.0 + 6 * 0.36, 1e-5);
+  ASSERT_EQ(r.face_convex.size(), r.mesh.faces.size());
+  // Every edge of every part is shared by exactly two triangles with opposite orientation.
+  std::map<std::pair<int, int>, int> directed;
+  for (const auto& f : r.mesh.faces) {
+    for (int e = 0; e < 3; ++e) directed[{f[e], f[(e + 1) % 3]}]++;
+  }
+  for (const auto& [edge, n] : directed) {
+    EXPECT_EQ(n, 1);
+    EXPECT_EQ(directed.count({edge.second, edge.first}), 1u);
+  }
+  for (const auto& v : r.mesh.vertices) EXPECT_TRUE(v.allFinite());
+}
+
+TEST(BspMesher, OccupancyMatchesTheExtractedPartsAwayFromFaces) {
+  const Scene s = MakeScene();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Eigen::MatrixX3f pts(4000, 3);
+  for (int i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), u(rng);
+  const auto occ = BspOccupancy(s.planes, s.convexes, pts);
+  int checked = 0;
+  for (int i = 0; i < pts.rows(); ++i) {
+    const Eigen::Vector3f p = pts.row(i);
+    auto in_box = [&](float lo, float hi, float margin) {
+      return (p.array() > lo + margin).all() && (p.array() < hi - margin).all();
+    };
+    const bool inside = in_box(-0.5f, 0.5f, 0.f) || in_box(0.3f, 0.9f, 0.f);
+    const bool near_face = in_box(-0.5f, 0.5f, -0.02f) != in_box(-0.5f, 0.5f, 0.02f) ||
+                           in_box(0.3f, 0.9f, -0.02f) != in_box(0.3f, 0.9f, 0.02f);
+    if (near_face) continue;
+    ++checked;
+    EXPECT_EQ(occ[i] != 0, inside) << p.transpose();
+  }
+  EXPECT_GT(checked, 3500);
+}
+
+TEST(BspMesher, RejectsBadInput) {
+  Scene s = MakeScene();
+  s.convexes[0].push_back(999);
+  EXPECT_THROW(ExtractBspMesh(s.planes, s.convexes), InvalidArgument);
+  Scene t = MakeScene();
+  t.planes(0, 1) = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THROW(ExtractBspMesh(t.planes, t.convexes), InvalidArgument);
+  EXPECT_THROW(ExtractBspMesh(Eigen::MatrixXf::Zero(3, 3), {}), InvalidArgument);
+  // No convex at all: an empty mesh, not an error.
+  EXPECT_TRUE(ExtractBspMesh(Eigen::MatrixXf::Zero(0, 4), {}).mesh.faces.empty());
+}
+
+}  // namespace
+}  // namespace dimr::pipeline
