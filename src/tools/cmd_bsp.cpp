@@ -1,5 +1,6 @@
 // BSP-CVAE commands: `dimr bsp prepare|eval|decode|interpolate`, `dimr train bsp`,
-// `dimr encode-pool`, `dimr bench bsp`.
+// `dimr encode-pool`, `dimr bench bsp`. Needs the nn and pipeline layers (LibTorch).
+#if defined(DIMR_HAVE_NN) && defined(DIMR_HAVE_PIPELINE)
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -452,3 +453,5 @@ const Registrar kBench("bench", "bsp", "Decode + mesh extraction time per object
 
 }  // namespace
 }  // namespace dimr::tools
+
+#endif  // DIMR_HAVE_NN && DIMR_HAVE_PIPELINE
