@@ -1,5 +1,7 @@
 #include "dimr/nn/bsp_dataset.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <iterator>
@@ -11,7 +13,7 @@ namespace dimr::nn {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'B', 'S', 'P', 'D'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;
 
 template <typename T>
 void Put(std::string* out, const T& v) {
@@ -50,6 +52,49 @@ class Reader {
 
 }  // namespace
 
+namespace {
+
+void PutBits(std::string* out, const std::vector<std::uint8_t>& grid) {
+  std::string bits((grid.size() + 7) / 8, '\0');
+  for (std::size_t i = 0; i < grid.size(); ++i) {
+    if (grid[i]) bits[i / 8] = static_cast<char>(bits[i / 8] | (1 << (i % 8)));
+  }
+  out->append(bits);
+}
+
+void GetBits(Reader* r, std::size_t cells, std::vector<std::uint8_t>* grid,
+             const std::string& what) {
+  std::string bits((cells + 7) / 8, '\0');
+  r->Bytes(bits.data(), bits.size(), what);
+  grid->assign(cells, 0);
+  for (std::size_t i = 0; i < cells; ++i) (*grid)[i] = (bits[i / 8] >> (i % 8)) & 1;
+}
+
+// Coordinates in [-1, 1] quantised to 16 bits (step 3.1e-5).
+std::uint16_t Quantize(float v) {
+  const float c = std::min(1.0f, std::max(-1.0f, v));
+  return static_cast<std::uint16_t>(std::lround((c + 1.0f) * 0.5f * 65535.0f));
+}
+float Dequantize(std::uint16_t q) { return static_cast<float>(q) / 65535.0f * 2.0f - 1.0f; }
+
+void PutPoints(std::string* out, const std::vector<float>& pts) {
+  Put(out, static_cast<std::uint64_t>(pts.size() / 3));
+  for (float v : pts) Put(out, Quantize(v));
+}
+
+void GetPoints(Reader* r, std::size_t file_size, std::vector<float>* pts, const std::string& path,
+               const std::string& what) {
+  const auto n = r->Get<std::uint64_t>(what + " count");
+  if (n > file_size / 6) throw ParseError(path, what + ": absurd point count " + std::to_string(n));
+  r->Need(n * 6, what);
+  pts->resize(n * 3);
+  for (auto& v : *pts) v = Dequantize(r->Get<std::uint16_t>(what));
+}
+
+}  // namespace
+
+float QuantizeBspCoordinate(float v) { return Dequantize(Quantize(v)); }
+
 void BspDataset::Save(const std::string& path) const {
   std::string out;
   out.append(kMagic, sizeof(kMagic));
@@ -67,14 +112,10 @@ void BspDataset::Save(const std::string& path) const {
     Put(&out, static_cast<std::int32_t>(s.cad_class));
     Put(&out, static_cast<std::uint32_t>(s.model_id.size()));
     out.append(s.model_id);
-    out.append(reinterpret_cast<const char*>(s.grid.data()), s.grid.size());
-    out.append(reinterpret_cast<const char*>(s.iou_grid.data()), s.iou_grid.size());
-    Put(&out, static_cast<std::uint64_t>(s.inside_points.size() / 3));
-    out.append(reinterpret_cast<const char*>(s.inside_points.data()),
-               s.inside_points.size() * sizeof(float));
-    Put(&out, static_cast<std::uint64_t>(s.outside_points.size() / 3));
-    out.append(reinterpret_cast<const char*>(s.outside_points.data()),
-               s.outside_points.size() * sizeof(float));
+    PutBits(&out, s.grid);
+    PutBits(&out, s.iou_grid);
+    PutPoints(&out, s.inside_points);
+    PutPoints(&out, s.outside_points);
   }
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
   if (!f) throw Error("cannot open '" + path + "' for writing");
@@ -104,8 +145,8 @@ BspDataset BspDataset::Load(const std::string& path) {
   const auto count = r.Get<std::uint64_t>("sample count");
   const std::size_t cells =
       static_cast<std::size_t>(data.resolution) * data.resolution * data.resolution;
-  // Each sample needs at least its grid; reject absurd counts before allocating.
-  if (count > bytes.size() / (2 * cells + 24)) {
+  // Each sample needs at least its two bit grids; reject absurd counts before allocating.
+  if (count > bytes.size() / (2 * ((cells + 7) / 8) + 24)) {
     throw ParseError(path,
                      "claims " + std::to_string(count) + " samples, more than the file holds");
   }
@@ -118,20 +159,10 @@ BspDataset BspDataset::Load(const std::string& path) {
     r.Need(id_len, where + " id");
     s.model_id.resize(id_len);
     r.Bytes(s.model_id.data(), id_len, where + " id");
-    s.grid.resize(cells);
-    r.Bytes(s.grid.data(), cells, where + " grid");
-    s.iou_grid.resize(cells);
-    r.Bytes(s.iou_grid.data(), cells, where + " target grid");
-    const auto n_in = r.Get<std::uint64_t>(where + " inside count");
-    if (n_in > bytes.size() / 12) throw ParseError(path, where + ": absurd inside point count");
-    r.Need(n_in * 3 * sizeof(float), where + " inside points");
-    s.inside_points.resize(n_in * 3);
-    r.Bytes(s.inside_points.data(), n_in * 3 * sizeof(float), where + " inside points");
-    const auto n_out = r.Get<std::uint64_t>(where + " outside count");
-    if (n_out > bytes.size() / 12) throw ParseError(path, where + ": absurd outside point count");
-    r.Need(n_out * 3 * sizeof(float), where + " outside points");
-    s.outside_points.resize(n_out * 3);
-    r.Bytes(s.outside_points.data(), n_out * 3 * sizeof(float), where + " outside points");
+    GetBits(&r, cells, &s.grid, where + " grid");
+    GetBits(&r, cells, &s.iou_grid, where + " target grid");
+    GetPoints(&r, bytes.size(), &s.inside_points, path, where + " inside points");
+    GetPoints(&r, bytes.size(), &s.outside_points, path, where + " outside points");
   }
   if (!r.AtEnd()) throw ParseError(path, "trailing bytes after the last sample");
   return data;

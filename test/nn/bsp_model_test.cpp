@@ -162,8 +162,13 @@ TEST(BspDataset, RoundTripAndTruncation) {
   for (std::size_t i = 0; i < data.samples.size(); ++i) {
     EXPECT_EQ(back.samples[i].grid, data.samples[i].grid);
     EXPECT_EQ(back.samples[i].iou_grid, data.samples[i].iou_grid);
-    EXPECT_EQ(back.samples[i].inside_points, data.samples[i].inside_points);
-    EXPECT_EQ(back.samples[i].outside_points, data.samples[i].outside_points);
+    ASSERT_EQ(back.samples[i].inside_points.size(), data.samples[i].inside_points.size());
+    ASSERT_EQ(back.samples[i].outside_points.size(), data.samples[i].outside_points.size());
+    for (std::size_t k = 0; k < data.samples[i].inside_points.size(); ++k) {
+      const float v = data.samples[i].inside_points[k];
+      EXPECT_EQ(back.samples[i].inside_points[k], QuantizeBspCoordinate(v));
+      EXPECT_NEAR(back.samples[i].inside_points[k], v, 1.6e-5f);
+    }
     EXPECT_EQ(back.samples[i].model_id, data.samples[i].model_id);
     EXPECT_EQ(back.samples[i].cad_class, data.samples[i].cad_class);
   }

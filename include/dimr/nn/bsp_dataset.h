@@ -2,7 +2,8 @@
 // filled occupancy grid the encoder sees and pools of query points inside/outside the shape,
 // in the network's normalised cube [-1, 1]^3 (canonical axes x forward, y left, z up; the
 // unit-box CAD model scaled by 2 * (1 - 1/R) like the reference's per-axis normalisation).
-// Stored on disk as a small binary file (the cache `dimr bsp prepare` writes).
+// Stored on disk as a compact binary file (the cache `dimr bsp prepare` writes): grids
+// bit-packed, point coordinates quantised to 16 bits over [-1, 1] (step 3.1e-5).
 #pragma once
 
 #include <cstdint>
@@ -24,7 +25,7 @@ struct BspDataset {
   int resolution = 32;  // R
   std::vector<BspSample> samples;
 
-  // Binary file: magic "DIMRBSPD", version, R, count, then per sample the fields above.
+  // Binary file: magic "DIMRBSPD", version 2, R, count, then per sample the fields above.
   // Load checks every count against the file size and throws dimr::ParseError naming the
   // file and the sample on any inconsistency.
   void Save(const std::string& path) const;
@@ -32,5 +33,8 @@ struct BspDataset {
   // Concatenates `other` (same resolution required).
   void Append(const BspDataset& other);
 };
+
+// The value a coordinate takes after a Save/Load round trip (16-bit quantisation).
+float QuantizeBspCoordinate(float v);
 
 }  // namespace dimr::nn

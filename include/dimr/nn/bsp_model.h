@@ -24,11 +24,11 @@ struct BspConfig {
   int num_planes = 1024;   // P
   int num_convexes = 128;  // C
   int num_classes = 8;
-  std::vector<int> decoder_widths = {512, 1024, 2048};
+  std::vector<int> decoder_widths = {256, 512, 1024};
 
   // The reference configuration (64^3 input, 128-d latent, 4096 planes, 256 convexes).
   static BspConfig Reference();
-  // The CPU-sized default (32^3, 128-d latent, 1024 planes, 128 convexes).
+  // The CPU-sized default (32^3, 128-d latent, 1024 planes, 128 convexes, decoder 256-512-1024).
   static BspConfig CpuDefault() { return BspConfig(); }
   // Throws dimr::InvalidArgument naming the offending key.
   void Validate() const;

@@ -16,10 +16,10 @@ namespace dimr::pipeline {
 struct BspSampleOptions {
   int resolution = 32;             // R, the encoder grid
   int fine_factor = 4;             // fine labelling grid = fine_factor * R cells per axis
-  int surface_points = 6000;       // near-surface query points (surface samples + Gaussian noise)
-  int uniform_points = 4000;       // uniform query points in [-1, 1]^3
+  int surface_points = 3000;       // near-surface query points (surface samples + Gaussian noise)
+  int uniform_points = 2000;       // uniform query points in [-1, 1]^3
   double surface_sigma = 0.03;     // noise of the near-surface points (normalised units)
-  int max_points_per_side = 4096;  // cap of the inside / outside pools
+  int max_points_per_side = 1024;  // cap of the inside / outside pools
 };
 
 // `mesh` in any frame (its bounds are normalised per axis). Throws dimr::InvalidArgument for
