@@ -1,0 +1,247 @@
+// Named-tensor checkpoint format:
+//   "DIMRCKPT" | u32 version (1) | u64 count |
+//   count x { u32 name_len | name | u8 dtype | u32 ndim | i64 dims[ndim] | u64 nbytes | data } |
+//   u64 FNV-1a-64 of every preceding byte.
+// Little-endian host order (x86-64 / aarch64).
+#include "dimr/nn/checkpoint.h"
+
+#include <cstdint>
+#include <cstring>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+namespace {
+
+constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'C', 'K', 'P', 'T'};
+constexpr uint32_t kVersion = 1;
+constexpr uint32_t kMaxNameLen = 4096;
+constexpr uint32_t kMaxDims = 16;
+
+enum DType : uint8_t { kF32 = 0, kF64 = 1, kF16 = 2, kI64 = 3 };
+
+uint64_t Fnv1a(const char* data, size_t n) {
+  uint64_t h = 1469598103934665603ULL;
+  for (size_t i = 0; i < n; ++i) {
+    h ^= static_cast<unsigned char>(data[i]);
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
+
+std::string ShapeStr(at::IntArrayRef s) {
+  std::ostringstream os;
+  os << s;
+  return os.str();
+}
+
+template <typename T>
+void Put(std::string& buf, T v) {
+  buf.append(reinterpret_cast<const char*>(&v), sizeof(T));
+}
+
+class Reader {
+ public:
+  Reader(const std::string& path, const std::string& data, size_t end)
+      : path_(path), data_(data), end_(end) {}
+  template <typename T>
+  T Get(const char* what) {
+    Need(sizeof(T), what);
+    T v;
+    std::memcpy(&v, data_.data() + pos_, sizeof(T));
+    pos_ += sizeof(T);
+    return v;
+  }
+  const char* Bytes(size_t n, const char* what) {
+    Need(n, what);
+    const char* p = data_.data() + pos_;
+    pos_ += n;
+    return p;
+  }
+  size_t pos() const { return pos_; }
+
+ private:
+  void Need(size_t n, const char* what) {
+    if (n > end_ - pos_) {
+      throw ParseError(path_, std::string("truncated: ") + what + " needs " + std::to_string(n) +
+                                  " bytes at offset " + std::to_string(pos_) + ", only " +
+                                  std::to_string(end_ - pos_) + " left");
+    }
+  }
+  const std::string& path_;
+  const std::string& data_;
+  size_t end_;
+  size_t pos_ = 0;
+};
+
+}  // namespace
+
+NamedTensors ModuleState(const torch::nn::Module& module) {
+  NamedTensors out;
+  for (const auto& p : module.named_parameters(true)) out.emplace_back(p.key(), p.value());
+  for (const auto& b : module.named_buffers(true)) out.emplace_back(b.key(), b.value());
+  return out;
+}
+
+void WriteCheckpoint(const NamedTensors& tensors, const std::string& path, bool half) {
+  std::string buf(kMagic, sizeof(kMagic));
+  Put<uint32_t>(buf, kVersion);
+  Put<uint64_t>(buf, tensors.size());
+  for (const auto& [name, tensor] : tensors) {
+    at::Tensor t = tensor.detach().to(at::kCPU).contiguous();
+    uint8_t code;
+    if (t.scalar_type() == at::kLong) {
+      code = kI64;
+    } else if (t.scalar_type() == at::kInt) {
+      t = t.to(at::kLong);
+      code = kI64;
+    } else if (half && at::isFloatingType(t.scalar_type())) {
+      t = t.to(at::kHalf);
+      code = kF16;
+    } else if (t.scalar_type() == at::kDouble) {
+      code = kF64;
+    } else if (t.scalar_type() == at::kHalf) {
+      code = kF16;
+    } else if (t.scalar_type() == at::kFloat) {
+      code = kF32;
+    } else {
+      throw InvalidArgument("checkpoint: tensor '" + name + "' has unsupported dtype " +
+                            std::string(c10::toString(t.scalar_type())));
+    }
+    Put<uint32_t>(buf, static_cast<uint32_t>(name.size()));
+    buf.append(name);
+    Put<uint8_t>(buf, code);
+    Put<uint32_t>(buf, static_cast<uint32_t>(t.dim()));
+    for (int64_t d : t.sizes()) Put<int64_t>(buf, d);
+    const uint64_t nbytes = static_cast<uint64_t>(t.numel()) * t.element_size();
+    Put<uint64_t>(buf, nbytes);
+    buf.append(static_cast<const char*>(t.data_ptr()), nbytes);
+  }
+  Put<uint64_t>(buf, Fnv1a(buf.data(), buf.size()));
+  std::ofstream f(path, std::ios::binary | std::ios::trunc);
+  if (!f) throw ParseError(path, "cannot open for writing");
+  f.write(buf.data(), static_cast<std::streamsize>(buf.size()));
+  if (!f) throw ParseError(path, "write failed");
+}
+
+NamedTensors ReadCheckpoint(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ParseError(path, "cannot open checkpoint");
+  std::string data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (data.size() < sizeof(kMagic) + 4 + 8 + 8) {
+    throw ParseError(path, "truncated: " + std::to_string(data.size()) +
+                               " bytes is smaller than a checkpoint header");
+  }
+  if (std::memcmp(data.data(), kMagic, sizeof(kMagic)) != 0) {
+    throw ParseError(path, "not a dimr checkpoint (bad magic)");
+  }
+  const size_t body = data.size() - 8;
+  Reader r(path, data, body);
+  r.Bytes(sizeof(kMagic), "magic");
+  const uint32_t version = r.Get<uint32_t>("version");
+  if (version != kVersion) {
+    throw ParseError(path, "unsupported checkpoint version " + std::to_string(version));
+  }
+  const uint64_t count = r.Get<uint64_t>("tensor count");
+  // Each entry needs at least 4 + 1 + 4 + 8 bytes.
+  if (count > body / 17) {
+    throw ParseError(path, "tensor count " + std::to_string(count) + " exceeds the file size");
+  }
+  NamedTensors out;
+  std::set<std::string> seen;
+  for (uint64_t i = 0; i < count; ++i) {
+    const std::string where = "tensor " + std::to_string(i);
+    const uint32_t name_len = r.Get<uint32_t>("name length");
+    if (name_len == 0 || name_len > kMaxNameLen) {
+      throw ParseError(path, where + ": bad name length " + std::to_string(name_len));
+    }
+    std::string name(r.Bytes(name_len, "name"), name_len);
+    if (!seen.insert(name).second) throw ParseError(path, "duplicate key '" + name + "'");
+    const uint8_t code = r.Get<uint8_t>("dtype");
+    at::ScalarType st;
+    switch (code) {
+      case kF32:
+        st = at::kFloat;
+        break;
+      case kF64:
+        st = at::kDouble;
+        break;
+      case kF16:
+        st = at::kHalf;
+        break;
+      case kI64:
+        st = at::kLong;
+        break;
+      default:
+        throw ParseError(path, "'" + name + "': unknown dtype code " + std::to_string(code));
+    }
+    const uint32_t ndim = r.Get<uint32_t>("ndim");
+    if (ndim > kMaxDims) {
+      throw ParseError(path, "'" + name + "': " + std::to_string(ndim) + " dimensions");
+    }
+    std::vector<int64_t> dims(ndim);
+    uint64_t numel = 1;
+    for (uint32_t d = 0; d < ndim; ++d) {
+      dims[d] = r.Get<int64_t>("dims");
+      if (dims[d] < 0 || (dims[d] > 0 && numel > (uint64_t{1} << 40) / dims[d])) {
+        throw ParseError(path, "'" + name + "': bad dimension " + std::to_string(dims[d]));
+      }
+      numel *= static_cast<uint64_t>(dims[d]);
+    }
+    const uint64_t nbytes = r.Get<uint64_t>("byte count");
+    if (nbytes != numel * c10::elementSize(st)) {
+      throw ParseError(path, "'" + name + "': byte count " + std::to_string(nbytes) +
+                                 " does not match shape " + ShapeStr(dims));
+    }
+    const char* src = r.Bytes(nbytes, "tensor data");
+    at::Tensor t = at::empty(dims, st);
+    if (nbytes) std::memcpy(t.data_ptr(), src, nbytes);
+    out.emplace_back(std::move(name), std::move(t));
+  }
+  if (r.pos() != body) {
+    throw ParseError(path, std::to_string(body - r.pos()) + " unexpected bytes after the tensors");
+  }
+  uint64_t stored;
+  std::memcpy(&stored, data.data() + body, 8);
+  if (stored != Fnv1a(data.data(), body)) {
+    throw ParseError(path, "checksum mismatch (file corrupt)");
+  }
+  return out;
+}
+
+void SaveCheckpoint(const torch::nn::Module& module, const std::string& path, bool half) {
+  WriteCheckpoint(ModuleState(module), path, half);
+}
+
+void LoadCheckpoint(torch::nn::Module& module, const std::string& path) {
+  NamedTensors file = ReadCheckpoint(path);
+  NamedTensors model = ModuleState(module);
+  std::map<std::string, at::Tensor> by_name(file.begin(), file.end());
+  std::set<std::string> model_keys;
+  for (const auto& [name, t] : model) {
+    model_keys.insert(name);
+    auto it = by_name.find(name);
+    if (it == by_name.end()) {
+      throw ParseError(path,
+                       "missing key '" + name + "' (model shape " + ShapeStr(t.sizes()) + ")");
+    }
+    if (it->second.sizes() != t.sizes()) {
+      throw ParseError(path, "shape mismatch for key '" + name + "': checkpoint " +
+                                 ShapeStr(it->second.sizes()) + " vs model " + ShapeStr(t.sizes()));
+    }
+  }
+  for (const auto& [name, t] : file) {
+    if (!model_keys.count(name)) {
+      throw ParseError(path, "unexpected key '" + name + "' (checkpoint shape " +
+                                 ShapeStr(t.sizes()) + ") not in the model");
+    }
+  }
+  at::NoGradGuard no_grad;
+  for (auto& [name, t] : model) t.copy_(by_name.at(name).to(t.device(), t.scalar_type()));
+}
+
+}  // namespace dimr::nn

@@ -1,0 +1,753 @@
+// Sparse convolution kernels (fused CPU and torch-ops), autograd functions, pooling and
+// voxelisation.
+#include "dimr/nn/sparse_ops.h"
+
+#include <ATen/Parallel.h>
+#include <torch/csrc/autograd/custom_function.h>
+
+#include <algorithm>
+#include <atomic>
+#include <limits>
+#include <sstream>
+#include <string>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+namespace {
+
+using torch::autograd::AutogradContext;
+using torch::autograd::variable_list;
+
+std::atomic<int> g_backend{static_cast<int>(SparseBackend::kAuto)};
+
+std::string Shape(const at::Tensor& t) {
+  std::ostringstream os;
+  os << t.sizes();
+  return os.str();
+}
+
+// Rows of `features` used as source and rows of the result written, per kernel offset.
+struct ConvPlan {
+  at::Tensor src_idx;  // [P] int64 on the feature device
+  at::Tensor dst_idx;
+  std::vector<int64_t> offsets;
+  int64_t identity = -1;
+  int64_t n_src = 0;
+  int64_t n_dst = 0;
+};
+
+ConvPlan MakePlan(const Rulebook& rb, bool transpose, const at::Device& device) {
+  auto idx = rb.OnDevice(device);
+  ConvPlan p;
+  p.offsets = rb.offsets;
+  p.identity = rb.identity_offset;
+  if (!transpose) {
+    p.src_idx = idx.first;
+    p.dst_idx = idx.second;
+    p.n_src = rb.num_in;
+    p.n_dst = rb.num_out;
+  } else {
+    p.src_idx = idx.second;
+    p.dst_idx = idx.first;
+    p.n_src = rb.num_out;
+    p.n_dst = rb.num_in;
+  }
+  return p;
+}
+
+int64_t ChunkRows(int64_t cin, int64_t cout) {
+  return std::clamp<int64_t>(131072 / std::max<int64_t>(1, cin + cout), 256, 8192);
+}
+
+template <typename T>
+inline void GatherRows(T* dst, const T* src, const int64_t* idx, int64_t rows, int64_t c) {
+  for (int64_t r = 0; r < rows; ++r) {
+    const T* s = src + idx[r] * c;
+    T* d = dst + r * c;
+    for (int64_t j = 0; j < c; ++j) d[j] = s[j];
+  }
+}
+
+template <typename T>
+inline void ScatterAddRows(T* dst, const T* src, const int64_t* idx, int64_t rows, int64_t c) {
+  for (int64_t r = 0; r < rows; ++r) {
+    T* d = dst + idx[r] * c;
+    const T* s = src + r * c;
+    for (int64_t j = 0; j < c; ++j) d[j] += s[j];
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Fused CPU kernels.
+// ---------------------------------------------------------------------------------------
+template <typename T>
+void FusedForwardImpl(const at::Tensor& x, const at::Tensor& w, const ConvPlan& p,
+                      at::Tensor& out) {
+  const int64_t cin = w.size(1), cout = w.size(2);
+  const int64_t rows = ChunkRows(cin, cout);
+  const int nthreads = at::get_num_threads();
+  at::Tensor buffers = at::empty({nthreads, rows * (cin + cout)}, x.options());
+  const T* xp = x.data_ptr<T>();
+  T* op = out.data_ptr<T>();
+  const int64_t* si = p.src_idx.data_ptr<int64_t>();
+  const int64_t* di = p.dst_idx.data_ptr<int64_t>();
+  const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  for (int64_t k = 0; k < kv; ++k) {
+    const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
+    if (n == 0) continue;
+    const at::Tensor wk = w.select(0, k);
+    if (k == p.identity && n == p.n_src && n == p.n_dst) {
+      out.addmm_(x, wk);
+      continue;
+    }
+    const int64_t nchunks = (n + rows - 1) / rows;
+    at::parallel_for(0, nchunks, 1, [&](int64_t cb, int64_t ce) {
+      at::NoGradGuard no_grad;
+      const int tid = at::get_thread_num();
+      T* abuf = buffers.data_ptr<T>() + tid * rows * (cin + cout);
+      T* bbuf = abuf + rows * cin;
+      for (int64_t ch = cb; ch < ce; ++ch) {
+        const int64_t r0 = b0 + ch * rows;
+        const int64_t m = std::min(rows, b0 + n - r0);
+        GatherRows(abuf, xp, si + r0, m, cin);
+        at::Tensor a = at::from_blob(abuf, {m, cin}, x.options());
+        at::Tensor bt = at::from_blob(bbuf, {m, cout}, x.options());
+        at::mm_out(bt, a, wk);
+        ScatterAddRows(op, bbuf, di + r0, m, cout);
+      }
+    });
+  }
+}
+
+template <typename T>
+void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tensor& gout,
+                       const ConvPlan& p, at::Tensor* gx, at::Tensor* gw) {
+  const int64_t cin = w.size(1), cout = w.size(2);
+  const int64_t rows = ChunkRows(cin, cout);
+  const int nthreads = at::get_num_threads();
+  const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  // Per thread: gathered grad_out [rows, cout], gathered x [rows, cin], product [rows, cin].
+  at::Tensor buffers = at::empty({nthreads, rows * (cout + 2 * cin)}, x.options());
+  at::Tensor acc;
+  if (gw) acc = at::zeros({nthreads, kv, cin, cout}, x.options());
+  const T* xp = x.data_ptr<T>();
+  const T* gp = gout.data_ptr<T>();
+  T* gxp = gx ? gx->data_ptr<T>() : nullptr;
+  const int64_t* si = p.src_idx.data_ptr<int64_t>();
+  const int64_t* di = p.dst_idx.data_ptr<int64_t>();
+  for (int64_t k = 0; k < kv; ++k) {
+    const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
+    if (n == 0) continue;
+    const at::Tensor wk = w.select(0, k);
+    const at::Tensor wkt = wk.t();
+    if (k == p.identity && n == p.n_src && n == p.n_dst) {
+      if (gx) gx->addmm_(gout, wkt);
+      if (gw) gw->select(0, k).addmm_(x.t(), gout);
+      continue;
+    }
+    const int64_t nchunks = (n + rows - 1) / rows;
+    at::parallel_for(0, nchunks, 1, [&](int64_t cb, int64_t ce) {
+      at::NoGradGuard no_grad;
+      const int tid = at::get_thread_num();
+      T* gbuf = buffers.data_ptr<T>() + tid * rows * (cout + 2 * cin);
+      T* xbuf = gbuf + rows * cout;
+      T* dbuf = xbuf + rows * cin;
+      at::Tensor acck;
+      if (gw) acck = acc.select(0, tid).select(0, k);
+      for (int64_t ch = cb; ch < ce; ++ch) {
+        const int64_t r0 = b0 + ch * rows;
+        const int64_t m = std::min(rows, b0 + n - r0);
+        GatherRows(gbuf, gp, di + r0, m, cout);
+        at::Tensor g = at::from_blob(gbuf, {m, cout}, x.options());
+        if (gx) {
+          at::Tensor d = at::from_blob(dbuf, {m, cin}, x.options());
+          at::mm_out(d, g, wkt);
+          ScatterAddRows(gxp, dbuf, si + r0, m, cin);
+        }
+        if (gw) {
+          GatherRows(xbuf, xp, si + r0, m, cin);
+          at::Tensor a = at::from_blob(xbuf, {m, cin}, x.options());
+          acck.addmm_(a.t(), g);
+        }
+      }
+    });
+  }
+  if (gw) gw->add_(acc.sum(0));
+}
+
+// ---------------------------------------------------------------------------------------
+// torch-ops kernels (any device).
+// ---------------------------------------------------------------------------------------
+at::Tensor TorchOpsForward(const at::Tensor& x, const at::Tensor& w, const ConvPlan& p) {
+  at::Tensor out = at::zeros({p.n_dst, w.size(2)}, x.options());
+  const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  for (int64_t k = 0; k < kv; ++k) {
+    const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
+    if (n == 0) continue;
+    at::Tensor si = p.src_idx.narrow(0, b0, n), di = p.dst_idx.narrow(0, b0, n);
+    out.index_add_(0, di, x.index_select(0, si).mm(w.select(0, k)));
+  }
+  return out;
+}
+
+void TorchOpsBackward(const at::Tensor& x, const at::Tensor& w, const at::Tensor& gout,
+                      const ConvPlan& p, at::Tensor* gx, at::Tensor* gw) {
+  const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  for (int64_t k = 0; k < kv; ++k) {
+    const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
+    if (n == 0) continue;
+    at::Tensor si = p.src_idx.narrow(0, b0, n), di = p.dst_idx.narrow(0, b0, n);
+    at::Tensor g = gout.index_select(0, di);
+    if (gx) gx->index_add_(0, si, g.mm(w.select(0, k).t()));
+    if (gw) gw->select(0, k).copy_(x.index_select(0, si).t().mm(g));
+  }
+}
+
+bool UseFused(SparseBackend requested, const at::Device& device) {
+  SparseBackend b = requested == SparseBackend::kAuto ? ResolveSparseBackend(device) : requested;
+  if (b == SparseBackend::kFused && !device.is_cpu()) {
+    throw InvalidArgument("sparse ops: the fused backend runs on CPU tensors only, got " +
+                          device.str());
+  }
+  return b == SparseBackend::kFused;
+}
+
+class ConvFunction : public torch::autograd::Function<ConvFunction> {
+ public:
+  static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& w,
+                            const at::Tensor& src_idx, const at::Tensor& dst_idx,
+                            std::vector<int64_t> meta, bool fused) {
+    // meta = [identity, n_src, n_dst, offsets...]
+    ConvPlan p = PlanFromMeta(src_idx, dst_idx, meta);
+    at::Tensor xc = x.detach().contiguous();
+    at::Tensor wc = w.detach().contiguous();
+    at::Tensor out;
+    if (fused) {
+      out = at::zeros({p.n_dst, wc.size(2)}, xc.options());
+      AT_DISPATCH_FLOATING_TYPES(xc.scalar_type(), "sparse_conv_forward",
+                                 [&] { FusedForwardImpl<scalar_t>(xc, wc, p, out); });
+    } else {
+      out = TorchOpsForward(xc, wc, p);
+    }
+    ctx->save_for_backward({x, w, src_idx, dst_idx});
+    ctx->saved_data["meta"] = meta;
+    ctx->saved_data["fused"] = fused;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto saved = ctx->get_saved_variables();
+    const at::Tensor x = saved[0].detach().contiguous();
+    const at::Tensor w = saved[1].detach().contiguous();
+    std::vector<int64_t> meta = ctx->saved_data["meta"].toIntVector();
+    const bool fused = ctx->saved_data["fused"].toBool();
+    ConvPlan p = PlanFromMeta(saved[2], saved[3], meta);
+    const at::Tensor g = grads[0].detach().contiguous();
+    const bool need_x = ctx->needs_input_grad(0), need_w = ctx->needs_input_grad(1);
+    at::Tensor gx, gw;
+    if (need_x) gx = at::zeros_like(x);
+    if (need_w) gw = at::zeros_like(w);
+    if (need_x || need_w) {
+      if (fused) {
+        AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "sparse_conv_backward", [&] {
+          FusedBackwardImpl<scalar_t>(x, w, g, p, need_x ? &gx : nullptr, need_w ? &gw : nullptr);
+        });
+      } else {
+        TorchOpsBackward(x, w, g, p, need_x ? &gx : nullptr, need_w ? &gw : nullptr);
+      }
+    }
+    return {gx, gw, at::Tensor(), at::Tensor(), at::Tensor(), at::Tensor()};
+  }
+
+ private:
+  static ConvPlan PlanFromMeta(const at::Tensor& src, const at::Tensor& dst,
+                               const std::vector<int64_t>& meta) {
+    ConvPlan p;
+    p.src_idx = src;
+    p.dst_idx = dst;
+    p.identity = meta[0];
+    p.n_src = meta[1];
+    p.n_dst = meta[2];
+    p.offsets.assign(meta.begin() + 3, meta.end());
+    return p;
+  }
+};
+
+void CheckFeatures(const at::Tensor& f, const char* op) {
+  if (f.dim() != 2) {
+    throw InvalidArgument(std::string(op) + ": features must be [N, C], got " + Shape(f));
+  }
+  if (!at::isFloatingType(f.scalar_type()) || f.scalar_type() == at::kHalf ||
+      f.scalar_type() == at::kBFloat16) {
+    throw InvalidArgument(std::string(op) + ": features must be float32 or float64");
+  }
+}
+
+void CheckConvWeight(const at::Tensor& w, int64_t k, int64_t cin, const char* op) {
+  if (w.dim() != 5 || w.size(0) != k || w.size(1) != k || w.size(2) != k || w.size(3) != cin) {
+    std::ostringstream os;
+    os << op << ": weight must be [" << k << ", " << k << ", " << k << ", " << cin
+       << ", Cout], got " << w.sizes();
+    throw InvalidArgument(os.str());
+  }
+}
+
+// ---------------------------------------------------------------------------------------
+// Segment pooling.
+// ---------------------------------------------------------------------------------------
+struct Csr {
+  std::vector<int64_t> offsets;  // S + 1
+  std::vector<int64_t> rows;
+};
+
+Csr BuildCsr(const at::Tensor& segment_cpu, int64_t num_segments) {
+  const int64_t n = segment_cpu.size(0);
+  const int64_t* s = segment_cpu.data_ptr<int64_t>();
+  Csr csr;
+  csr.offsets.assign(num_segments + 1, 0);
+  for (int64_t i = 0; i < n; ++i) {
+    if (s[i] < 0 || s[i] >= num_segments) {
+      throw InvalidArgument("segment pool: row " + std::to_string(i) + " has segment " +
+                            std::to_string(s[i]) + " outside [0, " + std::to_string(num_segments) +
+                            ")");
+    }
+    ++csr.offsets[s[i] + 1];
+  }
+  for (int64_t j = 0; j < num_segments; ++j) csr.offsets[j + 1] += csr.offsets[j];
+  csr.rows.resize(n);
+  std::vector<int64_t> fill(csr.offsets.begin(), csr.offsets.end() - 1);
+  for (int64_t i = 0; i < n; ++i) csr.rows[fill[s[i]]++] = i;
+  return csr;
+}
+
+class SegmentPoolFunction : public torch::autograd::Function<SegmentPoolFunction> {
+ public:
+  static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& segment,
+                            int64_t num_segments, bool is_max) {
+    at::Tensor xc = x.detach().contiguous();
+    Csr csr = BuildCsr(segment.to(at::kCPU, at::kLong).contiguous(), num_segments);
+    const int64_t c = xc.size(1);
+    at::Tensor out = at::zeros({num_segments, c}, xc.options());
+    at::Tensor arg = at::full({num_segments, c}, -1, at::kLong);
+    AT_DISPATCH_FLOATING_TYPES(xc.scalar_type(), "segment_pool_forward", [&] {
+      const scalar_t* xp = xc.data_ptr<scalar_t>();
+      scalar_t* op = out.data_ptr<scalar_t>();
+      int64_t* ap = arg.data_ptr<int64_t>();
+      at::parallel_for(0, num_segments, 16, [&](int64_t sb, int64_t se) {
+        for (int64_t s = sb; s < se; ++s) {
+          const int64_t r0 = csr.offsets[s], r1 = csr.offsets[s + 1];
+          if (r0 == r1) continue;
+          scalar_t* o = op + s * c;
+          if (is_max) {
+            int64_t* a = ap + s * c;
+            for (int64_t j = 0; j < c; ++j) {
+              o[j] = -std::numeric_limits<scalar_t>::infinity();
+            }
+            for (int64_t r = r0; r < r1; ++r) {
+              const int64_t row = csr.rows[r];
+              const scalar_t* xr = xp + row * c;
+              for (int64_t j = 0; j < c; ++j) {
+                if (xr[j] > o[j] || a[j] < 0) {
+                  o[j] = xr[j];
+                  a[j] = row;
+                }
+              }
+            }
+          } else {
+            for (int64_t r = r0; r < r1; ++r) {
+              const scalar_t* xr = xp + csr.rows[r] * c;
+              for (int64_t j = 0; j < c; ++j) o[j] += xr[j];
+            }
+            const scalar_t inv = scalar_t(1) / static_cast<scalar_t>(r1 - r0);
+            for (int64_t j = 0; j < c; ++j) o[j] *= inv;
+          }
+        }
+      });
+    });
+    at::Tensor counts = at::empty({num_segments}, at::kLong);
+    int64_t* cp = counts.data_ptr<int64_t>();
+    for (int64_t s = 0; s < num_segments; ++s) cp[s] = csr.offsets[s + 1] - csr.offsets[s];
+    ctx->save_for_backward({segment.to(at::kCPU, at::kLong).contiguous(), arg, counts});
+    ctx->saved_data["n"] = xc.size(0);
+    ctx->saved_data["is_max"] = is_max;
+    return out;
+  }
+
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto saved = ctx->get_saved_variables();
+    const at::Tensor seg = saved[0], arg = saved[1], counts = saved[2];
+    const int64_t n = ctx->saved_data["n"].toInt();
+    const bool is_max = ctx->saved_data["is_max"].toBool();
+    const at::Tensor g = grads[0].detach().contiguous();
+    const int64_t c = g.size(1), ns = g.size(0);
+    at::Tensor gx = at::zeros({n, c}, g.options());
+    AT_DISPATCH_FLOATING_TYPES(g.scalar_type(), "segment_pool_backward", [&] {
+      const scalar_t* gp = g.data_ptr<scalar_t>();
+      scalar_t* xp = gx.data_ptr<scalar_t>();
+      if (is_max) {
+        const int64_t* ap = arg.data_ptr<int64_t>();
+        at::parallel_for(0, ns, 16, [&](int64_t sb, int64_t se) {
+          for (int64_t s = sb; s < se; ++s) {
+            for (int64_t j = 0; j < c; ++j) {
+              const int64_t row = ap[s * c + j];
+              if (row >= 0) xp[row * c + j] += gp[s * c + j];
+            }
+          }
+        });
+      } else {
+        const int64_t* sp = seg.data_ptr<int64_t>();
+        const int64_t* cp = counts.data_ptr<int64_t>();
+        at::parallel_for(0, n, 256, [&](int64_t rb, int64_t re) {
+          for (int64_t i = rb; i < re; ++i) {
+            const scalar_t inv = scalar_t(1) / static_cast<scalar_t>(cp[sp[i]]);
+            for (int64_t j = 0; j < c; ++j) xp[i * c + j] = gp[sp[i] * c + j] * inv;
+          }
+        });
+      }
+    });
+    return {gx, at::Tensor(), at::Tensor(), at::Tensor()};
+  }
+};
+
+// ---------------------------------------------------------------------------------------
+// Voxel mean / gather over a CSR voxel map.
+// ---------------------------------------------------------------------------------------
+// Per voxel v: out[v] = scale_v * sum over its points of in[point]  (scale 1/count or 1).
+template <typename T>
+void VoxelReduce(const T* in, T* out, const int64_t* off, const int64_t* pts, int64_t m, int64_t c,
+                 bool mean) {
+  at::parallel_for(0, m, 64, [&](int64_t vb, int64_t ve) {
+    for (int64_t v = vb; v < ve; ++v) {
+      T* o = out + v * c;
+      for (int64_t j = 0; j < c; ++j) o[j] = T(0);
+      for (int64_t r = off[v]; r < off[v + 1]; ++r) {
+        const T* x = in + pts[r] * c;
+        for (int64_t j = 0; j < c; ++j) o[j] += x[j];
+      }
+      if (mean && off[v + 1] > off[v]) {
+        const T inv = T(1) / static_cast<T>(off[v + 1] - off[v]);
+        for (int64_t j = 0; j < c; ++j) o[j] *= inv;
+      }
+    }
+  });
+}
+
+// Per point i: out[i] = scale * in[p2v[i]].
+template <typename T>
+void PointGather(const T* in, T* out, const int64_t* p2v, const int64_t* off, int64_t n, int64_t c,
+                 bool mean) {
+  at::parallel_for(0, n, 256, [&](int64_t ib, int64_t ie) {
+    for (int64_t i = ib; i < ie; ++i) {
+      const int64_t v = p2v[i];
+      const T s = mean ? T(1) / static_cast<T>(off[v + 1] - off[v]) : T(1);
+      const T* x = in + v * c;
+      T* o = out + i * c;
+      for (int64_t j = 0; j < c; ++j) o[j] = x[j] * s;
+    }
+  });
+}
+
+at::Tensor RunVoxelReduce(const at::Tensor& x, const at::Tensor& off, const at::Tensor& pts,
+                          bool mean) {
+  const int64_t m = off.size(0) - 1;
+  at::Tensor out = at::empty({m, x.size(1)}, x.options());
+  AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "voxel_reduce", [&] {
+    VoxelReduce<scalar_t>(x.data_ptr<scalar_t>(), out.data_ptr<scalar_t>(), off.data_ptr<int64_t>(),
+                          pts.data_ptr<int64_t>(), m, x.size(1), mean);
+  });
+  return out;
+}
+
+at::Tensor RunPointGather(const at::Tensor& x, const at::Tensor& p2v, const at::Tensor& off,
+                          bool mean) {
+  const int64_t n = p2v.size(0);
+  at::Tensor out = at::empty({n, x.size(1)}, x.options());
+  AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "point_gather", [&] {
+    PointGather<scalar_t>(x.data_ptr<scalar_t>(), out.data_ptr<scalar_t>(), p2v.data_ptr<int64_t>(),
+                          off.data_ptr<int64_t>(), n, x.size(1), mean);
+  });
+  return out;
+}
+
+class VoxelMeanFunction : public torch::autograd::Function<VoxelMeanFunction> {
+ public:
+  static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& p2v,
+                            const at::Tensor& off, const at::Tensor& pts) {
+    ctx->save_for_backward({p2v, off, pts});
+    return RunVoxelReduce(x.detach().contiguous(), off, pts, true);
+  }
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto s = ctx->get_saved_variables();
+    return {RunPointGather(grads[0].detach().contiguous(), s[0], s[1], true), at::Tensor(),
+            at::Tensor(), at::Tensor()};
+  }
+};
+
+class DevoxelizeFunction : public torch::autograd::Function<DevoxelizeFunction> {
+ public:
+  static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& p2v,
+                            const at::Tensor& off, const at::Tensor& pts) {
+    ctx->save_for_backward({p2v, off, pts});
+    return RunPointGather(x.detach().contiguous(), p2v, off, false);
+  }
+  static variable_list backward(AutogradContext* ctx, variable_list grads) {
+    auto s = ctx->get_saved_variables();
+    return {RunVoxelReduce(grads[0].detach().contiguous(), s[1], s[2], false), at::Tensor(),
+            at::Tensor(), at::Tensor()};
+  }
+};
+
+}  // namespace
+
+void SetSparseBackend(SparseBackend backend) { g_backend = static_cast<int>(backend); }
+SparseBackend GetSparseBackend() { return static_cast<SparseBackend>(g_backend.load()); }
+
+SparseBackend ResolveSparseBackend(const at::Device& device) {
+  const SparseBackend b = GetSparseBackend();
+  if (b != SparseBackend::kAuto) return b;
+  return device.is_cpu() ? SparseBackend::kFused : SparseBackend::kTorchOps;
+}
+
+at::Tensor RulebookConv(const at::Tensor& features, const at::Tensor& weight, const Rulebook& rb,
+                        bool transpose, SparseBackend backend) {
+  CheckFeatures(features, "sparse conv");
+  const int64_t n_src = transpose ? rb.num_out : rb.num_in;
+  if (weight.dim() != 3 || weight.size(0) != rb.kernel_volume ||
+      weight.size(1) != features.size(1) || features.size(0) != n_src) {
+    std::ostringstream os;
+    os << "sparse conv: features " << features.sizes() << " / weight " << weight.sizes()
+       << " do not fit a rulebook with " << rb.kernel_volume << " offsets and " << n_src
+       << " input sites";
+    throw InvalidArgument(os.str());
+  }
+  if (weight.scalar_type() != features.scalar_type() || weight.device() != features.device()) {
+    throw InvalidArgument("sparse conv: weight and features differ in dtype or device");
+  }
+  const bool fused = UseFused(backend, features.device());
+  ConvPlan p = MakePlan(rb, transpose, features.device());
+  std::vector<int64_t> meta{p.identity, p.n_src, p.n_dst};
+  meta.insert(meta.end(), p.offsets.begin(), p.offsets.end());
+  return ConvFunction::apply(features, weight, p.src_idx, p.dst_idx, meta, fused);
+}
+
+SparseTensor SubMConv3d(const SparseTensor& x, const at::Tensor& weight) {
+  const at::Tensor& f = x.features();
+  CheckFeatures(f, "SubMConv3d");
+  const int64_t k = weight.dim() == 5 ? weight.size(0) : -1;
+  if (k != 1 && k != 3) {
+    throw InvalidArgument("SubMConv3d: kernel size must be 1 or 3, weight " + Shape(weight));
+  }
+  CheckConvWeight(weight, k, f.size(1), "SubMConv3d");
+  const int64_t cin = weight.size(3), cout = weight.size(4);
+  if (k == 1) return x.WithFeatures(f.mm(weight.reshape({cin, cout})));
+  const Rulebook& rb = x.context()->Subm3(x.stride());
+  return x.WithFeatures(RulebookConv(f, weight.reshape({27, cin, cout}), rb, false));
+}
+
+SparseTensor SparseConv3dDown(const SparseTensor& x, const at::Tensor& weight) {
+  const at::Tensor& f = x.features();
+  CheckFeatures(f, "SparseConv3d");
+  CheckConvWeight(weight, 2, f.size(1), "SparseConv3d");
+  const Rulebook& rb = x.context()->Down(x.stride());
+  at::Tensor out = RulebookConv(f, weight.reshape({8, weight.size(3), weight.size(4)}), rb, false);
+  return SparseTensor(out, 2 * x.stride(), x.context());
+}
+
+SparseTensor SparseInverseConv3d(const SparseTensor& x, const at::Tensor& weight) {
+  const at::Tensor& f = x.features();
+  CheckFeatures(f, "SparseInverseConv3d");
+  CheckConvWeight(weight, 2, f.size(1), "SparseInverseConv3d");
+  if (x.stride() < 2 || x.stride() % 2 != 0 || !x.context()->has_level(x.stride() / 2)) {
+    throw InvalidArgument("SparseInverseConv3d: input stride " + std::to_string(x.stride()) +
+                          " has no paired finer level");
+  }
+  const int64_t fine = x.stride() / 2;
+  const Rulebook& rb = x.context()->Down(fine);
+  at::Tensor out = RulebookConv(f, weight.reshape({8, weight.size(3), weight.size(4)}), rb, true);
+  return SparseTensor(out, fine, x.context());
+}
+
+SparseTensor LeakyRelu(const SparseTensor& x, double negative_slope) {
+  return x.WithFeatures(at::leaky_relu(x.features(), negative_slope));
+}
+
+SparseTensor Concat(const std::vector<SparseTensor>& xs) {
+  if (xs.empty()) throw InvalidArgument("sparse concat: no tensors");
+  std::vector<at::Tensor> fs;
+  for (const auto& x : xs) {
+    if (x.context() != xs[0].context() || x.stride() != xs[0].stride()) {
+      throw InvalidArgument("sparse concat: tensors are not on the same sites");
+    }
+    fs.push_back(x.features());
+  }
+  return xs[0].WithFeatures(at::cat(fs, 1));
+}
+
+at::Tensor SegmentPool(const at::Tensor& features, const at::Tensor& segment, int64_t num_segments,
+                       PoolMode mode, SparseBackend backend) {
+  CheckFeatures(features, "segment pool");
+  if (segment.dim() != 1 || segment.size(0) != features.size(0) || num_segments < 0) {
+    throw InvalidArgument("segment pool: segment ids must be [N] for features " + Shape(features));
+  }
+  const bool is_max = mode == PoolMode::kMax;
+  if (UseFused(backend, features.device())) {
+    return SegmentPoolFunction::apply(features, segment, num_segments, is_max);
+  }
+  at::Tensor seg = segment.to(features.device(), at::kLong);
+  at::Tensor zeros = at::zeros({num_segments, features.size(1)}, features.options());
+  if (is_max) {
+    at::Tensor idx = seg.unsqueeze(1).expand_as(features);
+    return zeros.scatter_reduce(0, idx, features, "amax", /*include_self=*/false);
+  }
+  at::Tensor counts = at::zeros({num_segments}, features.options())
+                          .index_add_(0, seg, at::ones({seg.size(0)}, features.options()));
+  return zeros.index_add(0, seg, features) / counts.clamp_min(1).unsqueeze(1);
+}
+
+at::Tensor BatchPool(const SparseTensor& x, PoolMode mode) {
+  at::Tensor seg = x.coords().select(1, 0).to(at::kLong);
+  return SegmentPool(x.features(), seg, x.batch_size(), mode);
+}
+
+at::Tensor PointVoxelCoords(const at::Tensor& points, const at::Tensor& batch, double scale) {
+  if (points.dim() != 2 || points.size(1) != 3 || batch.dim() != 1 ||
+      batch.size(0) != points.size(0) || !(scale > 0)) {
+    throw InvalidArgument("voxelise: need points [N, 3], batch [N] and scale > 0, got points " +
+                          Shape(points) + ", batch " + Shape(batch));
+  }
+  at::Tensor p = points.detach().to(at::kCPU, at::kDouble).contiguous();
+  at::Tensor b = batch.to(at::kCPU, at::kLong).contiguous();
+  const int64_t n = p.size(0);
+  const double* pp = p.data_ptr<double>();
+  const int64_t* bp = b.data_ptr<int64_t>();
+  int64_t nb = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    if (bp[i] < 0)
+      throw InvalidArgument("voxelise: negative batch index at point " + std::to_string(i));
+    nb = std::max(nb, bp[i] + 1);
+  }
+  std::vector<double> mins(3 * nb, std::numeric_limits<double>::infinity());
+  for (int64_t i = 0; i < n; ++i) {
+    for (int a = 0; a < 3; ++a) {
+      const double q = scale * pp[3 * i + a];
+      if (!std::isfinite(q)) {
+        throw InvalidArgument("voxelise: point " + std::to_string(i) + " is not finite");
+      }
+      mins[3 * bp[i] + a] = std::min(mins[3 * bp[i] + a], q);
+    }
+  }
+  at::Tensor out = at::empty({n, 4}, at::kInt);
+  int32_t* op = out.data_ptr<int32_t>();
+  for (int64_t i = 0; i < n; ++i) {
+    op[4 * i] = static_cast<int32_t>(bp[i]);
+    for (int a = 0; a < 3; ++a) {
+      const double v = std::floor(scale * pp[3 * i + a] - mins[3 * bp[i] + a]);
+      if (v > 65535) {
+        throw InvalidArgument("voxelise: point " + std::to_string(i) +
+                              " lies more than 65535 voxels from the scene minimum");
+      }
+      op[4 * i + 1 + a] = static_cast<int32_t>(v);
+    }
+  }
+  return out;
+}
+
+VoxelMap BuildVoxelMap(const at::Tensor& point_coords) {
+  if (point_coords.dim() != 2 || point_coords.size(1) != 4) {
+    throw InvalidArgument("voxelise: point coords must be [N, 4] (b, x, y, z), got " +
+                          Shape(point_coords));
+  }
+  at::Tensor c = point_coords.to(at::kCPU, at::kInt).contiguous();
+  const int64_t n = c.size(0);
+  const int32_t* cp = c.data_ptr<int32_t>();
+  for (int64_t i = 0; i < 4 * n; ++i) {
+    if (cp[i] < 0 || cp[i] > 65535) {
+      throw InvalidArgument("voxelise: point " + std::to_string(i / 4) +
+                            " has a coordinate outside [0, 65535]");
+    }
+  }
+  VoxelMap map;
+  map.point_to_voxel = at::empty({n}, at::kLong);
+  int64_t* p2v = map.point_to_voxel.data_ptr<int64_t>();
+  uint64_t cap = 16;
+  while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
+  std::vector<uint64_t> keys(cap, 0);
+  std::vector<int64_t> vals(cap, -1);
+  std::vector<int32_t> vc;
+  int64_t m = 0;
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t* s = cp + 4 * i;
+    const uint64_t key = SiteHash::Pack(s[0], s[1], s[2], s[3]) + 1;
+    uint64_t h = (key * 0x9E3779B97F4A7C15ULL) >> 20;
+    h &= cap - 1;
+    while (keys[h] != 0 && keys[h] != key) h = (h + 1) & (cap - 1);
+    if (keys[h] == 0) {
+      keys[h] = key;
+      vals[h] = m++;
+      vc.insert(vc.end(), s, s + 4);
+    }
+    p2v[i] = vals[h];
+  }
+  map.voxel_coords = at::from_blob(vc.data(), {m, 4}, at::kInt).clone();
+  map.voxel_offsets = at::zeros({m + 1}, at::kLong);
+  int64_t* off = map.voxel_offsets.data_ptr<int64_t>();
+  for (int64_t i = 0; i < n; ++i) ++off[p2v[i] + 1];
+  for (int64_t v = 0; v < m; ++v) off[v + 1] += off[v];
+  map.voxel_points = at::empty({n}, at::kLong);
+  int64_t* pts = map.voxel_points.data_ptr<int64_t>();
+  std::vector<int64_t> fill(off, off + m);
+  for (int64_t i = 0; i < n; ++i) pts[fill[p2v[i]]++] = i;
+  return map;
+}
+
+at::Tensor VoxelMean(const at::Tensor& point_features, const VoxelMap& map, SparseBackend backend) {
+  CheckFeatures(point_features, "voxel mean");
+  if (point_features.size(0) != map.point_to_voxel.size(0)) {
+    throw InvalidArgument("voxel mean: " + std::to_string(point_features.size(0)) +
+                          " feature rows for a map of " +
+                          std::to_string(map.point_to_voxel.size(0)) + " points");
+  }
+  if (UseFused(backend, point_features.device())) {
+    return VoxelMeanFunction::apply(point_features, map.point_to_voxel, map.voxel_offsets,
+                                    map.voxel_points);
+  }
+  const auto dev = point_features.device();
+  at::Tensor p2v = map.point_to_voxel.to(dev);
+  at::Tensor counts = (map.voxel_offsets.narrow(0, 1, map.num_voxels()) -
+                       map.voxel_offsets.narrow(0, 0, map.num_voxels()))
+                          .to(dev, point_features.scalar_type());
+  at::Tensor sums = at::zeros({map.num_voxels(), point_features.size(1)}, point_features.options())
+                        .index_add(0, p2v, point_features);
+  return sums / counts.unsqueeze(1);
+}
+
+at::Tensor Devoxelize(const at::Tensor& voxel_features, const VoxelMap& map,
+                      SparseBackend backend) {
+  CheckFeatures(voxel_features, "devoxelise");
+  if (voxel_features.size(0) != map.num_voxels()) {
+    throw InvalidArgument("devoxelise: " + std::to_string(voxel_features.size(0)) +
+                          " voxel rows for a map of " + std::to_string(map.num_voxels()) +
+                          " voxels");
+  }
+  if (UseFused(backend, voxel_features.device())) {
+    return DevoxelizeFunction::apply(voxel_features, map.point_to_voxel, map.voxel_offsets,
+                                     map.voxel_points);
+  }
+  return voxel_features.index_select(0, map.point_to_voxel.to(voxel_features.device()));
+}
+
+Voxelized Voxelize(const at::Tensor& point_coords, const at::Tensor& point_features,
+                   int64_t batch_size, std::array<int64_t, 3> min_spatial_shape) {
+  VoxelMap map = BuildVoxelMap(point_coords);
+  std::array<int64_t, 3> shape = min_spatial_shape;
+  if (map.num_voxels() > 0) {
+    at::Tensor mx = std::get<0>(map.voxel_coords.max(0));
+    for (int a = 0; a < 3; ++a) shape[a] = std::max<int64_t>(shape[a], mx[a + 1].item<int>() + 1);
+  }
+  at::Tensor feats = VoxelMean(point_features, map);
+  Voxelized out{SparseTensor(map.voxel_coords, feats, shape, batch_size), map};
+  return out;
+}
+
+}  // namespace dimr::nn

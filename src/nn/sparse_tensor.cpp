@@ -1,0 +1,280 @@
+// SparseTensor, site hash and rulebook construction (CPU, at::parallel_for over offsets).
+#include "dimr/nn/sparse_tensor.h"
+
+#include <ATen/Parallel.h>
+
+#include <sstream>
+#include <string>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+namespace {
+
+constexpr int64_t kMaxCoord = 65535;
+
+inline uint64_t Mix(uint64_t k) {
+  k ^= k >> 33;
+  k *= 0xff51afd7ed558ccdULL;
+  k ^= k >> 33;
+  k *= 0xc4ceb3f93ca5ed53ULL;
+  k ^= k >> 33;
+  return k;
+}
+
+std::string ShapeString(const std::array<int64_t, 3>& s) {
+  std::ostringstream os;
+  os << "[" << s[0] << ", " << s[1] << ", " << s[2] << "]";
+  return os.str();
+}
+
+// Builds a Rulebook from per-offset pair lists.
+std::shared_ptr<Rulebook> Assemble(std::vector<std::vector<int64_t>>& ins,
+                                   std::vector<std::vector<int64_t>>& outs, int64_t num_in,
+                                   int64_t num_out) {
+  auto rb = std::make_shared<Rulebook>();
+  rb->kernel_volume = static_cast<int64_t>(ins.size());
+  rb->num_in = num_in;
+  rb->num_out = num_out;
+  rb->offsets.assign(ins.size() + 1, 0);
+  for (size_t k = 0; k < ins.size(); ++k) {
+    rb->offsets[k + 1] = rb->offsets[k] + static_cast<int64_t>(ins[k].size());
+  }
+  const int64_t total = rb->offsets.back();
+  rb->in_idx = at::empty({total}, at::kLong);
+  rb->out_idx = at::empty({total}, at::kLong);
+  int64_t* pi = rb->in_idx.data_ptr<int64_t>();
+  int64_t* po = rb->out_idx.data_ptr<int64_t>();
+  at::parallel_for(0, static_cast<int64_t>(ins.size()), 1, [&](int64_t b, int64_t e) {
+    for (int64_t k = b; k < e; ++k) {
+      std::copy(ins[k].begin(), ins[k].end(), pi + rb->offsets[k]);
+      std::copy(outs[k].begin(), outs[k].end(), po + rb->offsets[k]);
+    }
+  });
+  return rb;
+}
+
+}  // namespace
+
+SiteHash::SiteHash(const at::Tensor& coords) {
+  const int64_t n = coords.size(0);
+  uint64_t cap = 16;
+  while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
+  keys_.assign(cap, 0);
+  values_.assign(cap, -1);
+  mask_ = cap - 1;
+  const int32_t* c = coords.data_ptr<int32_t>();
+  for (int64_t i = 0; i < n; ++i) {
+    const uint64_t key = Pack(c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]) + 1;
+    uint64_t h = Mix(key) & mask_;
+    while (keys_[h] != 0 && keys_[h] != key) h = (h + 1) & mask_;
+    if (keys_[h] == key) {
+      std::ostringstream os;
+      os << "sparse tensor: duplicate site (b, x, y, z) = (" << c[4 * i] << ", " << c[4 * i + 1]
+         << ", " << c[4 * i + 2] << ", " << c[4 * i + 3] << ") at rows " << values_[h] << " and "
+         << i;
+      throw InvalidArgument(os.str());
+    }
+    keys_[h] = key;
+    values_[h] = i;
+  }
+}
+
+int64_t SiteHash::Find(int64_t b, int64_t x, int64_t y, int64_t z) const {
+  if (x < 0 || y < 0 || z < 0 || x > kMaxCoord || y > kMaxCoord || z > kMaxCoord) return -1;
+  const uint64_t key = Pack(b, x, y, z) + 1;
+  uint64_t h = Mix(key) & mask_;
+  while (true) {
+    const uint64_t k = keys_[h];
+    if (k == key) return values_[h];
+    if (k == 0) return -1;
+    h = (h + 1) & mask_;
+  }
+}
+
+std::pair<at::Tensor, at::Tensor> Rulebook::OnDevice(const at::Device& device) const {
+  if (device.is_cpu()) return {in_idx, out_idx};
+  std::lock_guard<std::mutex> lock(mutex_);
+  const std::string key = device.str();
+  auto it = device_cache_.find(key);
+  if (it != device_cache_.end()) return it->second;
+  auto pair = std::make_pair(in_idx.to(device), out_idx.to(device));
+  device_cache_[key] = pair;
+  return pair;
+}
+
+SparseContext::SparseContext(at::Tensor coords, std::array<int64_t, 3> spatial_shape,
+                             int64_t batch_size)
+    : batch_size_(batch_size) {
+  if (coords.dim() != 2 || coords.size(1) != 4) {
+    throw InvalidArgument("sparse tensor: coords must be [N, 4] (b, x, y, z), got " +
+                          std::to_string(coords.dim()) + " dims");
+  }
+  if (batch_size < 1 || batch_size > kMaxCoord) {
+    throw InvalidArgument("sparse tensor: batch_size " + std::to_string(batch_size) +
+                          " outside [1, 65535]");
+  }
+  for (int a = 0; a < 3; ++a) {
+    if (spatial_shape[a] < 1 || spatial_shape[a] > kMaxCoord + 1) {
+      throw InvalidArgument("sparse tensor: spatial shape " + ShapeString(spatial_shape) +
+                            " outside [1, 65536]");
+    }
+  }
+  Level level;
+  level.coords = coords.to(at::kCPU, at::kInt).contiguous();
+  level.shape = spatial_shape;
+  const int32_t* c = level.coords.data_ptr<int32_t>();
+  const int64_t n = level.coords.size(0);
+  for (int64_t i = 0; i < n; ++i) {
+    const bool ok_b = c[4 * i] >= 0 && c[4 * i] < batch_size;
+    bool ok = ok_b;
+    for (int a = 0; a < 3; ++a)
+      ok = ok && c[4 * i + 1 + a] >= 0 && c[4 * i + 1 + a] < spatial_shape[a];
+    if (!ok) {
+      std::ostringstream os;
+      os << "sparse tensor: site " << i << " (b, x, y, z) = (" << c[4 * i] << ", " << c[4 * i + 1]
+         << ", " << c[4 * i + 2] << ", " << c[4 * i + 3] << ") outside batch " << batch_size
+         << " x spatial shape " << ShapeString(spatial_shape);
+      throw InvalidArgument(os.str());
+    }
+  }
+  level.hash = std::make_shared<SiteHash>(level.coords);
+  levels_.emplace(1, std::move(level));
+}
+
+bool SparseContext::has_level(int64_t stride) const { return levels_.count(stride) != 0; }
+
+const SparseContext::Level& SparseContext::level(int64_t stride) const {
+  auto it = levels_.find(stride);
+  if (it == levels_.end()) {
+    throw InvalidArgument("sparse tensor: no level with stride " + std::to_string(stride));
+  }
+  return it->second;
+}
+
+SparseContext::Level& SparseContext::MutableLevel(int64_t stride) {
+  auto it = levels_.find(stride);
+  if (it == levels_.end()) {
+    throw InvalidArgument("sparse tensor: no level with stride " + std::to_string(stride));
+  }
+  return it->second;
+}
+
+const Rulebook& SparseContext::Subm3(int64_t stride) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Level& lv = MutableLevel(stride);
+  if (lv.subm3) return *lv.subm3;
+  const int64_t n = lv.coords.size(0);
+  const int32_t* c = lv.coords.data_ptr<int32_t>();
+  const SiteHash& hash = *lv.hash;
+  std::vector<std::vector<int64_t>> ins(27), outs(27);
+  at::parallel_for(0, 27, 1, [&](int64_t kb, int64_t ke) {
+    for (int64_t k = kb; k < ke; ++k) {
+      const int64_t dx = k / 9 - 1, dy = (k / 3) % 3 - 1, dz = k % 3 - 1;
+      auto& vi = ins[k];
+      auto& vo = outs[k];
+      if (k == 13) {
+        vi.resize(n);
+        vo.resize(n);
+        for (int64_t o = 0; o < n; ++o) vi[o] = vo[o] = o;
+        continue;
+      }
+      vi.reserve(n / 2);
+      vo.reserve(n / 2);
+      for (int64_t o = 0; o < n; ++o) {
+        const int32_t* s = c + 4 * o;
+        const int64_t i = hash.Find(s[0], s[1] + dx, s[2] + dy, s[3] + dz);
+        if (i >= 0) {
+          vi.push_back(i);
+          vo.push_back(o);
+        }
+      }
+    }
+  });
+  lv.subm3 = Assemble(ins, outs, n, n);
+  lv.subm3->identity_offset = 13;
+  return *lv.subm3;
+}
+
+const Rulebook& SparseContext::Down(int64_t stride) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  Level& fine = MutableLevel(stride);
+  if (fine.down) return *fine.down;
+  const int64_t n = fine.coords.size(0);
+  const int32_t* c = fine.coords.data_ptr<int32_t>();
+  std::array<int64_t, 3> cshape{fine.shape[0] / 2, fine.shape[1] / 2, fine.shape[2] / 2};
+  if (cshape[0] < 1 || cshape[1] < 1 || cshape[2] < 1) {
+    throw InvalidArgument("sparse tensor: cannot downsample spatial shape " +
+                          ShapeString(fine.shape) + " (stride " + std::to_string(stride) +
+                          ") with k2 s2: an axis would become empty");
+  }
+  // Coarse sites in order of first occurrence.
+  std::vector<int32_t> ccoords;
+  ccoords.reserve(static_cast<size_t>(n));
+  std::vector<int64_t> fine_to_coarse(n, -1);
+  {
+    uint64_t cap = 16;
+    while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
+    std::vector<uint64_t> keys(cap, 0);
+    std::vector<int64_t> vals(cap, -1);
+    int64_t m = 0;
+    for (int64_t i = 0; i < n; ++i) {
+      const int32_t* s = c + 4 * i;
+      const int64_t cx = s[1] / 2, cy = s[2] / 2, cz = s[3] / 2;
+      if (cx >= cshape[0] || cy >= cshape[1] || cz >= cshape[2]) continue;  // dropped border
+      const uint64_t key = SiteHash::Pack(s[0], cx, cy, cz) + 1;
+      uint64_t h = Mix(key) & (cap - 1);
+      while (keys[h] != 0 && keys[h] != key) h = (h + 1) & (cap - 1);
+      if (keys[h] == 0) {
+        keys[h] = key;
+        vals[h] = m++;
+        ccoords.insert(ccoords.end(), {s[0], static_cast<int32_t>(cx), static_cast<int32_t>(cy),
+                                       static_cast<int32_t>(cz)});
+      }
+      fine_to_coarse[i] = vals[h];
+    }
+  }
+  const int64_t m = static_cast<int64_t>(ccoords.size() / 4);
+  std::vector<std::vector<int64_t>> ins(8), outs(8);
+  for (int64_t i = 0; i < n; ++i) {
+    if (fine_to_coarse[i] < 0) continue;
+    const int32_t* s = c + 4 * i;
+    const int64_t k = 4 * (s[1] & 1) + 2 * (s[2] & 1) + (s[3] & 1);
+    ins[k].push_back(i);
+    outs[k].push_back(fine_to_coarse[i]);
+  }
+  fine.down = Assemble(ins, outs, n, m);
+  Level coarse;
+  coarse.coords = at::from_blob(ccoords.data(), {m, 4}, at::kInt).clone();
+  coarse.shape = cshape;
+  coarse.hash = std::make_shared<SiteHash>(coarse.coords);
+  levels_[2 * stride] = std::move(coarse);
+  return *fine.down;
+}
+
+SparseTensor::SparseTensor(const at::Tensor& coords, at::Tensor features,
+                           std::array<int64_t, 3> spatial_shape, int64_t batch_size)
+    : features_(std::move(features)),
+      stride_(1),
+      context_(std::make_shared<SparseContext>(coords, spatial_shape, batch_size)) {
+  if (features_.dim() != 2 || features_.size(0) != coords.size(0)) {
+    throw InvalidArgument("sparse tensor: features must be [N, C] with N = " +
+                          std::to_string(coords.size(0)) + " sites");
+  }
+}
+
+SparseTensor::SparseTensor(at::Tensor features, int64_t stride,
+                           std::shared_ptr<SparseContext> context)
+    : features_(std::move(features)), stride_(stride), context_(std::move(context)) {
+  if (!context_ || features_.dim() != 2 ||
+      features_.size(0) != context_->level(stride_).coords.size(0)) {
+    throw InvalidArgument("sparse tensor: features rows do not match the sites of stride " +
+                          std::to_string(stride_));
+  }
+}
+
+SparseTensor SparseTensor::WithFeatures(at::Tensor features) const {
+  return SparseTensor(std::move(features), stride_, context_);
+}
+
+}  // namespace dimr::nn
