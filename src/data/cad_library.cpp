@@ -1113,8 +1113,10 @@ void Bed(Builder& b, Rng& r) {
   const int pillows = W > 1.3 ? 2 : 1;
   for (int i = 0; i < pillows; ++i) {
     const double yc = -W / 2 + W * (i + 0.5) / pillows;
-    RoundedSlab(b, Vec3(-L / 2 + 0.25, yc, fz + 0.1 + mt + 0.05),
-                Vec3(0.35, W / pillows - 0.1, 0.12), 4.0, "pillow", RotY(kPi / 2));
+    const double pz = fz + 0.1 + mt;
+    b.Loft({SuperRing(-L / 2 + 0.25, yc, 0.17, (W / pillows - 0.1) / 2, 4.0, 24, pz - 0.01),
+            SuperRing(-L / 2 + 0.25, yc, 0.15, (W / pillows - 0.14) / 2, 4.0, 24, pz + 0.11)},
+           false, "pillow");
   }
 }
 
@@ -1179,7 +1181,8 @@ void Ottoman(Builder& b, Rng& r) {
   }
   const double W = r.Uniform(0.4, 0.9), D = r.Uniform(0.4, 0.7), H = r.Uniform(0.35, 0.45);
   const double f = r.Uniform(0.0, 0.08);
-  RoundedSlab(b, Vec3(0, 0, f + (H - f) / 2), Vec3(D, W, H - f), 8.0, "body", RotY(kPi / 2));
+  b.Loft({SuperRing(0, 0, D / 2, W / 2, 8.0, 32, f), SuperRing(0, 0, D / 2, W / 2, 8.0, 32, H)},
+         false, "body");
   if (f > 0.02) FourLegs(b, D / 2 - 0.03, W / 2 - 0.03, 0.0, f + 0.01, 0.035, true);
 }
 

@@ -314,16 +314,25 @@ void DrawText(Image& img, int x, int y, const std::string& text, int px, const V
 void RenderSheet(const std::vector<CadModel>& models, int cols, int tile, const std::string& out) {
   constexpr int kSs = 3;  // supersampling factor
   const int rows = (static_cast<int>(models.size()) + cols - 1) / cols;
-  const int label = 14;
+  const int label = 24;
   Image big(cols * tile * kSs, rows * (tile + label) * kSs, 1.0f);
   for (std::size_t i = 0; i < models.size(); ++i) {
     const int r = static_cast<int>(i) / cols, c = static_cast<int>(i) % cols;
     const int x0 = c * tile * kSs, y0 = r * (tile + label) * kSs;
     RenderModel(models[i], big, x0, y0, tile * kSs);
-    std::string text = models[i].family;
-    const int max_chars = tile / 8;
-    if (static_cast<int>(text.size()) > max_chars) text.resize(max_chars);
-    DrawText(big, x0 + 4 * kSs, y0 + tile * kSs + 2 * kSs, text, 2 * kSs, Vec3(0.1, 0.1, 0.1));
+    // Family name under the tile, wrapped once at an underscore when too long.
+    std::string line1 = models[i].family, line2;
+    const std::size_t max_chars = static_cast<std::size_t>((tile - 8) / 8);
+    if (line1.size() > max_chars) {
+      std::size_t cut = line1.rfind('_', max_chars);
+      if (cut == std::string::npos || cut == 0) cut = max_chars;
+      line2 = line1.substr(cut);
+      line1.resize(cut);
+      if (line2.size() > max_chars) line2.resize(max_chars);
+    }
+    const Vec3 ink(0.1, 0.1, 0.1);
+    DrawText(big, x0 + 4 * kSs, y0 + tile * kSs, line1, 2 * kSs, ink);
+    DrawText(big, x0 + 4 * kSs, y0 + (tile + 12) * kSs, line2, 2 * kSs, ink);
   }
   const int w = cols * tile, h = rows * (tile + label);
   std::vector<std::uint8_t> rgb(static_cast<std::size_t>(3) * w * h);
@@ -449,6 +458,7 @@ struct RenderArgs {
   int tile = 160;
   bool distractors = false;
   bool families = false;
+  int cols = 0;
 };
 
 void SetupRender(CLI::App& app) {
@@ -462,6 +472,8 @@ void SetupRender(CLI::App& app) {
   app.add_option("--tile", a->tile, "tile size in pixels")
       ->capture_default_str()
       ->check(CLI::Range(32, 1024));
+  app.add_option("--cols", a->cols, "tiles per row (default: --per-class, 6 with --families)")
+      ->check(CLI::Range(1, 64));
   app.add_flag("--distractors", a->distractors, "render the distractor kinds instead");
   app.add_flag("--families", a->families,
                "one model of each family per class (first seed with that family)");
@@ -505,6 +517,7 @@ void SetupRender(CLI::App& app) {
         }
       }
     }
+    if (a->cols > 0 && !a->families) cols = a->cols;
     RenderSheet(models, cols, a->tile, a->out);
     std::printf("rendered %zu models -> %s\n", models.size(), a->out.c_str());
   });

@@ -3,11 +3,16 @@
 #include "dimr/data/shapenet_io.h"
 
 #include <gtest/gtest.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 #include "dimr/data/cad_library.h"
@@ -222,6 +227,80 @@ TEST_F(ShapeNetIo, ErrorsNameThePath) {
     EXPECT_NE(std::string(e.what()).find(m.model_id), std::string::npos) << e.what();
   }
 }
+
+#ifdef DIMR_CLI
+// Runs a shell command, returns (exit status, stdout + stderr).
+std::pair<int, std::string> RunShell(const std::string& cmd) {
+  std::string out;
+  FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
+  if (p == nullptr) return {-1, out};
+  char buf[4096];
+  std::size_t n;
+  while ((n = std::fread(buf, 1, sizeof(buf), p)) > 0) out.append(buf, n);
+  const int status = ::pclose(p);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, out};
+}
+
+std::uint32_t Crc(const std::string& data) {
+  std::uint32_t c = 0xffffffffu;
+  for (unsigned char b : data) {
+    c ^= b;
+    for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
+  }
+  return ~c;
+}
+
+std::uint32_t Be32(const std::string& s, std::size_t at) {
+  return (static_cast<std::uint32_t>(static_cast<unsigned char>(s[at])) << 24) |
+         (static_cast<std::uint32_t>(static_cast<unsigned char>(s[at + 1])) << 16) |
+         (static_cast<std::uint32_t>(static_cast<unsigned char>(s[at + 2])) << 8) |
+         static_cast<std::uint32_t>(static_cast<unsigned char>(s[at + 3]));
+}
+
+TEST_F(ShapeNetIo, CliGenerateStatsRender) {
+  if (!fs::exists(DIMR_CLI)) GTEST_SKIP() << "dimr CLI not built";
+  const std::string cli = DIMR_CLI;
+  auto [rc, out] = RunShell(cli + " cad generate --class chair --count 3 --seed 5 --out " + dir_);
+  ASSERT_EQ(rc, 0) << out;
+  const auto models = ReadShapeNetTree(dir_);
+  ASSERT_EQ(models.size(), 3u);
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(models[i].model_id, GenerateCadModel(kCadChair, 5 + i).model_id);
+    EXPECT_EQ(models[i].family, GenerateCadModel(kCadChair, 5 + i).family);
+  }
+  std::tie(rc, out) = RunShell(cli + " cad stats --dir " + dir_);
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("chair"), std::string::npos) << out;
+  EXPECT_NE(out.find("total: 3 models"), std::string::npos) << out;
+  std::tie(rc, out) = RunShell(cli + " cad generate --class sofa_bed --count 1 --out " + dir_);
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("sofa_bed"), std::string::npos) << out;
+  // Render: a valid PNG (signature, IHDR size, chunk CRCs, IEND).
+  const std::string png = dir_ + "/sheet.png";
+  std::tie(rc, out) =
+      RunShell(cli + " cad render --class table --per-class 3 --tile 64 --out " + png);
+  ASSERT_EQ(rc, 0) << out;
+  std::ifstream in(png, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  ASSERT_GT(bytes.size(), 100u);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_EQ(bytes.substr(12, 4), "IHDR");
+  EXPECT_EQ(Be32(bytes, 16), 3u * 64u);   // width: 3 tiles
+  EXPECT_EQ(Be32(bytes, 20), 64u + 24u);  // height: one row + label strip
+  std::size_t at = 8;
+  std::string last;
+  while (at + 12 <= bytes.size()) {
+    const std::uint32_t len = Be32(bytes, at);
+    ASSERT_LE(at + 12 + len, bytes.size());
+    const std::string body = bytes.substr(at + 4, 4 + len);
+    EXPECT_EQ(Crc(body), Be32(bytes, at + 8 + len)) << body.substr(0, 4);
+    last = body.substr(0, 4);
+    at += 12 + len;
+  }
+  EXPECT_EQ(last, "IEND");
+  EXPECT_EQ(at, bytes.size());
+}
+#endif  // DIMR_CLI
 
 }  // namespace
 }  // namespace dimr::data
