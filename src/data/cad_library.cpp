@@ -784,7 +784,16 @@ void TrashBin(Builder& b, Rng& r, int style, bool* symmetric) {
               BinRing(round, ex, rt - wall, at - wall, H),
               BinRing(round, ex, rt - wall, at - wall, H - lh), "rim");
   }
-  *symmetric = round && style != 3;
+  bool handles = false;
+  if (style != 3 && r.Chance(0.3)) {  // carrying handles on the left and right walls
+    handles = true;
+    const double zh = H * r.Uniform(0.78, 0.88);
+    const double ah = ab + (at - ab) * zh / H;
+    for (int s = -1; s <= 1; s += 2) {
+      b.Box(Vec3(0, s * (ah + 0.008), zh), Vec3(std::min(0.1, rt), 0.026, 0.025), "handle");
+    }
+  }
+  *symmetric = round && style != 3 && !handles;
   if (style == 3) {
     // Lid hinged at the back (-x), opened by `angle` (0 = closed) so the opening stays free.
     const double angle = r.Uniform(1.2, 1.9);
@@ -988,6 +997,10 @@ void Bathtub(Builder& b, Rng& r, int style) {
       b.Rod(Vec3(0, y, H - 0.01), Vec3(0, y, H + 0.12), 0.015, 10, "faucet");
       b.Rod(Vec3(0, y + 0.015, H + 0.11), Vec3(0, y - 0.1, H + 0.11), 0.012, 10, "faucet");
     }
+    if (r.Chance(0.4)) {  // tiled deck at the foot end
+      const double deck = r.Uniform(0.1, 0.35);
+      b.BoxMinMax(Vec3(-Wd / 2, -L / 2 - deck, 0), Vec3(Wd / 2, -L / 2 + 0.01, H), "deck");
+    }
     return;
   }
   const double ex = r.Uniform(2.0, 3.5);
@@ -1010,7 +1023,14 @@ void Bathtub(Builder& b, Rng& r, int style) {
         b.Cylinder(p, 0.035, 0.025, base + 0.02, 10, "foot");
       }
     }
-  } else {
+  }
+  if (r.Chance(0.35)) {  // floor-standing tap beside the head end
+    const double y = L / 2 + r.Uniform(0.06, 0.12), top = H + r.Uniform(0.15, 0.3);
+    b.Cylinder(Vec3(0, y, 0), 0.05, 0.05, 0.015, 16, "faucet");
+    b.Rod(Vec3(0, y, 0.01), Vec3(0, y, top), 0.015, 10, "faucet");
+    b.Rod(Vec3(0, y + 0.015, top - 0.015), Vec3(0, L / 2 - 0.12, top - 0.015), 0.012, 10, "faucet");
+  }
+  if (style == 1) {
     b.Loft({SuperRing(0, 0, Wd / 2 * taper * 0.85, L / 2 * taper * 0.85, ex, n, 0.0),
             SuperRing(0, 0, Wd / 2 * taper * 0.85, L / 2 * taper * 0.85, ex, n, base + 0.02)},
            false, "plinth");
