@@ -1361,7 +1361,8 @@ CadModel GenerateCadModel(int cad_class, std::uint64_t seed) {
   const int family = static_cast<int>(r.Next() % families.size());
   CadModel m;
   m.cad_class = cad_class;
-  m.rfs_class = CadToRfs(cad_class);
+  // Desks carry ScanNet's own "desk" label (RFS 12, which maps back to the CAD table class).
+  m.rfs_class = families[family] == "desk" ? kDesk : CadToRfs(cad_class);
   m.synset = CadSynsets()[cad_class];
   m.family = families[family];
   m.model_id = ModelId("dimr-cad", cad_class, seed);

@@ -74,6 +74,7 @@ json EntryOf(const CadModel& m) {
   e["model_id"] = m.model_id;
   e["synset"] = m.synset;
   e["class"] = m.cad_class;
+  e["rfs_class"] = m.rfs_class;
   e["class_name"] =
       (m.cad_class >= 0 && m.cad_class < kNumCadClasses) ? CadClassNames()[m.cad_class] : "";
   e["family"] = m.family;
@@ -244,6 +245,13 @@ std::vector<CadModel> ReadShapeNetTree(const std::string& dir) {
       if (cls != m.cad_class) {
         throw ParseError(where,
                          "class " + std::to_string(cls) + " does not match synset " + synset);
+      }
+      if (e.contains("rfs_class")) {
+        const int rfs = Field<int>(e, "rfs_class", where);
+        if (rfs < -1 || rfs >= kNumRfsClasses) {
+          throw ParseError(where, "rfs_class " + std::to_string(rfs) + " out of range");
+        }
+        m.rfs_class = rfs;
       }
       if (e.contains("part_face_begin")) {
         auto begins = Field<std::vector<int>>(e, "part_face_begin", where);
