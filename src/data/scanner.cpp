@@ -1,0 +1,577 @@
+// SynthScan virtual RGB-D scanner (see scanner.h).
+#include "dimr/data/scanner.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <thread>
+
+#include "dimr/data/synth_random.h"
+#include "dimr/geometry/error.h"
+
+#ifdef DIMR_HAVE_EMBREE
+#include <embree3/rtcore.h>
+#endif
+
+namespace dimr::data {
+namespace {
+
+using synth::HashCombine;
+using synth::Mix64;
+using synth::Rng;
+
+using geometry::Color;
+using geometry::Vec3;
+using Vec2 = Eigen::Vector2d;
+constexpr double kPi = 3.14159265358979323846;
+
+double Deg(double d) { return d * kPi / 180.0; }
+
+// Smooth 3-D value noise in [-1, 1] (trilinear interpolation of hashed lattice values).
+double ValueNoise(const Vec3& p, std::uint64_t salt) {
+  const Vec3 f(std::floor(p.x()), std::floor(p.y()), std::floor(p.z()));
+  const Vec3 t = p - f;
+  const std::int64_t ix = static_cast<std::int64_t>(f.x()), iy = static_cast<std::int64_t>(f.y()),
+                     iz = static_cast<std::int64_t>(f.z());
+  auto lattice = [&](std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::uint64_t h = HashCombine(HashCombine(HashCombine(salt, x), y), z);
+    return static_cast<double>(h >> 11) * (2.0 / 9007199254740992.0) - 1.0;
+  };
+  auto smooth = [](double x) { return x * x * (3 - 2 * x); };
+  const double sx = smooth(t.x()), sy = smooth(t.y()), sz = smooth(t.z());
+  double v = 0;
+  for (int k = 0; k < 8; ++k) {
+    const int dx = k & 1, dy = (k >> 1) & 1, dz = (k >> 2) & 1;
+    const double w = (dx ? sx : 1 - sx) * (dy ? sy : 1 - sy) * (dz ? sz : 1 - sz);
+    v += w * lattice(ix + dx, iy + dy, iz + dz);
+  }
+  return v;
+}
+
+Color Shade(const PlacedObject& obj, std::uint64_t salt, const Vec3& p, const Vec3& n,
+            const Vec3& view_dir, Rng* rng) {
+  const Material& m = obj.material;
+  const double tex =
+      1.0 + m.texture_amplitude * (ValueNoise(p / m.texture_scale, salt) +
+                                   0.5 * ValueNoise(p / (0.25 * m.texture_scale), salt + 1));
+  static const Vec3 kLight = Vec3(0.3, 0.2, 0.93).normalized();
+  const double shade = 0.45 + 0.4 * std::max(0.0, n.dot(kLight)) + 0.2 * std::abs(n.dot(view_dir));
+  Color c;
+  for (int k = 0; k < 3; ++k) {
+    double v = m.albedo[k] * tex * shade;
+    v = std::pow(std::clamp(v, 0.0, 1.0), 1.0 / 2.2) * 255.0 + rng->Normal(0.0, 2.0);
+    c[k] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  }
+  return c;
+}
+
+// Inward offset of an orthogonal, counter-clockwise polygon.
+std::vector<Vec2> InsetPolygon(const std::vector<Vec2>& poly, double d) {
+  const std::size_t n = poly.size();
+  std::vector<Vec2> out(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2& prev = poly[(i + n - 1) % n];
+    const Vec2& cur = poly[i];
+    const Vec2& next = poly[(i + 1) % n];
+    const Vec2 e0 = (cur - prev).normalized(), e1 = (next - cur).normalized();
+    const Vec2 n0(-e0.y(), e0.x()), n1(-e1.y(), e1.x());
+    out[i] = cur + d * (n0 + n1);
+  }
+  return out;
+}
+
+struct Return {
+  Eigen::Vector3f world;
+  Eigen::Vector3f bin;  // noise-free depth in the (drifted) estimated frame
+  Eigen::Vector3f cam;
+  Color color;
+  float weight;  // 1 / sigma^2 of the depth measurement
+  int object;
+  bool keep_frame;     // on the frame (rosbag) pixel grid
+  bool keep_raw;       // on the raw-density pixel grid
+  std::uint64_t cell;  // (object, 1 cm cell) of the true surface point
+};
+
+// Open-addressing accumulator keyed by (voxel, object).
+class VoxelAccumulator {
+ public:
+  struct Entry {
+    std::uint64_t voxel = 0;
+    std::int32_t object = -1;  // -1 = empty slot
+    std::uint32_t count = 0;
+    double w = 0;  // sum of weights (1 / sigma^2 of the observations)
+    double sx = 0, sy = 0, sz = 0;
+    std::uint32_t r = 0, g = 0, b = 0;
+  };
+  explicit VoxelAccumulator(double voxel) : inv_(1.0 / voxel) { slots_.resize(1 << 16); }
+
+  static std::uint64_t Pack(std::int64_t x, std::int64_t y, std::int64_t z) {
+    const std::int64_t o = 1 << 20;
+    return (static_cast<std::uint64_t>(x + o) & 0x1fffff) |
+           ((static_cast<std::uint64_t>(y + o) & 0x1fffff) << 21) |
+           ((static_cast<std::uint64_t>(z + o) & 0x1fffff) << 42);
+  }
+  // Adds the measurement `p` to the voxel of `bin` (the noise-free measurement: binning by
+  // the noisy point would bias the voxels next to a surface towards the noise tails).
+  void Add(const Eigen::Vector3f& bin, const Eigen::Vector3f& p, const Color& c, int object,
+           double weight) {
+    const std::uint64_t key = Pack(static_cast<std::int64_t>(std::floor(bin.x() * inv_)),
+                                   static_cast<std::int64_t>(std::floor(bin.y() * inv_)),
+                                   static_cast<std::int64_t>(std::floor(bin.z() * inv_)));
+    if (size_ * 2 >= slots_.size()) Grow();
+    Entry& e = Find(key, object);
+    if (e.object < 0) {
+      e.voxel = key;
+      e.object = object;
+      ++size_;
+    }
+    ++e.count;
+    e.w += weight;
+    e.sx += weight * p.x();
+    e.sy += weight * p.y();
+    e.sz += weight * p.z();
+    e.r += c[0];
+    e.g += c[1];
+    e.b += c[2];
+  }
+  std::vector<Entry> Entries() const {
+    std::vector<Entry> out;
+    out.reserve(size_);
+    for (const auto& e : slots_) {
+      if (e.object >= 0) out.push_back(e);
+    }
+    std::sort(out.begin(), out.end(), [](const Entry& a, const Entry& b) {
+      return a.voxel != b.voxel ? a.voxel < b.voxel : a.object < b.object;
+    });
+    return out;
+  }
+
+ private:
+  Entry& Find(std::uint64_t key, int object) {
+    const std::size_t mask = slots_.size() - 1;
+    std::size_t i = Mix64(key * 131 + static_cast<std::uint64_t>(object)) & mask;
+    while (slots_[i].object >= 0 && (slots_[i].voxel != key || slots_[i].object != object))
+      i = (i + 1) & mask;
+    return slots_[i];
+  }
+  void Grow() {
+    std::vector<Entry> old;
+    old.swap(slots_);
+    slots_.assign(old.size() * 2, Entry());
+    for (const auto& e : old) {
+      if (e.object >= 0) Find(e.voxel, e.object) = e;
+    }
+  }
+  double inv_;
+  std::vector<Entry> slots_;
+  std::size_t size_ = 0;
+};
+
+// Open-addressing set of 64-bit keys (key ~0 is reserved as "empty").
+class HashSet64 {
+ public:
+  HashSet64() : slots_(1 << 16, kEmpty) {}
+  void Insert(std::uint64_t key) {
+    if (size_ * 2 >= slots_.size()) Grow();
+    if (Put(key)) ++size_;
+  }
+  std::vector<std::uint64_t> Sorted() const {
+    std::vector<std::uint64_t> out;
+    out.reserve(size_);
+    for (auto k : slots_) {
+      if (k != kEmpty) out.push_back(k);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
+  }
+
+ private:
+  static constexpr std::uint64_t kEmpty = ~0ULL;
+  bool Put(std::uint64_t key) {
+    const std::size_t mask = slots_.size() - 1;
+    std::size_t i = Mix64(key) & mask;
+    while (slots_[i] != kEmpty) {
+      if (slots_[i] == key) return false;
+      i = (i + 1) & mask;
+    }
+    slots_[i] = key;
+    return true;
+  }
+  void Grow() {
+    std::vector<std::uint64_t> old(slots_.size() * 2, kEmpty);
+    old.swap(slots_);
+    for (auto k : old) {
+      if (k != kEmpty) Put(k);
+    }
+  }
+  std::vector<std::uint64_t> slots_;
+  std::size_t size_ = 0;
+};
+
+#ifdef DIMR_HAVE_EMBREE
+RTCDevice SharedDevice() {
+  static std::once_flag once;
+  static RTCDevice device = nullptr;
+  std::call_once(once, []() { device = rtcNewDevice("threads=1"); });
+  if (!device) throw Error("Embree: rtcNewDevice failed");
+  return device;
+}
+
+class EmbreeScene {
+ public:
+  explicit EmbreeScene(const Room& room) {
+    scene_ = rtcNewScene(SharedDevice());
+    rtcSetSceneBuildQuality(scene_, RTC_BUILD_QUALITY_MEDIUM);
+    for (std::size_t i = 0; i < room.objects.size(); ++i) {
+      const geometry::TriangleMesh m = room.objects[i].WorldMesh();
+      if (m.faces.empty()) continue;
+      RTCGeometry g = rtcNewGeometry(SharedDevice(), RTC_GEOMETRY_TYPE_TRIANGLE);
+      float* vb = static_cast<float*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), m.vertices.size()));
+      unsigned* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+          g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), m.faces.size()));
+      for (std::size_t v = 0; v < m.vertices.size(); ++v) {
+        for (int k = 0; k < 3; ++k) vb[3 * v + k] = static_cast<float>(m.vertices[v][k]);
+      }
+      for (std::size_t f = 0; f < m.faces.size(); ++f) {
+        for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(m.faces[f][k]);
+      }
+      rtcCommitGeometry(g);
+      rtcAttachGeometryByID(scene_, g, static_cast<unsigned>(i));
+      rtcReleaseGeometry(g);
+    }
+    rtcCommitScene(scene_);
+  }
+  ~EmbreeScene() { rtcReleaseScene(scene_); }
+  EmbreeScene(const EmbreeScene&) = delete;
+  EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+  // Returns the object index hit (or -1), the distance and the unit geometric normal.
+  int Cast(const Vec3& o, const Vec3& d, double tfar, double* t, Vec3* n) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh;
+    rh.ray.org_x = static_cast<float>(o.x());
+    rh.ray.org_y = static_cast<float>(o.y());
+    rh.ray.org_z = static_cast<float>(o.z());
+    rh.ray.dir_x = static_cast<float>(d.x());
+    rh.ray.dir_y = static_cast<float>(d.y());
+    rh.ray.dir_z = static_cast<float>(d.z());
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = static_cast<float>(tfar);
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.flags = 0;
+    rh.ray.time = 0.0f;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(scene_, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return -1;
+    *t = rh.ray.tfar;
+    *n = Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+    const double len = n->norm();
+    *n = len > 0 ? Vec3(*n / len) : Vec3::UnitZ();
+    return static_cast<int>(rh.hit.geomID);
+  }
+
+ private:
+  RTCScene scene_ = nullptr;
+};
+#endif
+
+}  // namespace
+
+std::uint64_t CellKey(const geometry::Vec3& p, int object) {
+  const auto q = [](double v) {
+    return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::floor(v / kObservedCell)) +
+                                      (1 << 15)) &
+           0xffff;
+  };
+  return q(p.x()) | (q(p.y()) << 16) | (q(p.z()) << 32) |
+         (static_cast<std::uint64_t>(object & 0x7fff) << 48);
+}
+
+bool ObservedNear(const ScanResult& scan, int object, const geometry::Vec3& p) {
+  for (int dx = -1; dx <= 1; ++dx) {
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dz = -1; dz <= 1; ++dz) {
+        const std::uint64_t key = CellKey(p + kObservedCell * Vec3(dx, dy, dz), object);
+        if (std::binary_search(scan.observed_cells.begin(), scan.observed_cells.end(), key))
+          return true;
+      }
+    }
+  }
+  return false;
+}
+
+const char* ScanDensityName(ScanDensity d) { return d == ScanDensity::kMesh ? "mesh" : "raw"; }
+
+ScanDensity ScanDensityFromName(const std::string& name) {
+  if (name == "mesh") return ScanDensity::kMesh;
+  if (name == "raw") return ScanDensity::kRaw;
+  throw InvalidArgument("density: expected 'mesh' or 'raw', got '" + name + "'");
+}
+
+void ScannerConfig::Validate() const {
+  auto fail = [](const std::string& m) { throw InvalidArgument("ScannerConfig: " + m); };
+  if (width < 8 || height < 8 || width > 4096 || height > 4096)
+    fail("width/height must be in [8, 4096]");
+  if (!(fov_x_deg > 10 && fov_x_deg < 170)) fail("fov_x_deg must be in (10, 170)");
+  if (!(min_range >= 0 && max_range > min_range && max_range <= 20))
+    fail("need 0 <= min_range < max_range <= 20 (metres)");
+  if (frames < 1 || frames > 10000) fail("frames must be in [1, 10000]");
+  if (!(min_camera_height > 0.2 && max_camera_height >= min_camera_height))
+    fail("need 0.2 < min_camera_height <= max_camera_height");
+  if (!(path_inset > 0.1)) fail("path_inset must be > 0.1 m");
+  if (!(min_tilt_deg >= -60 && max_tilt_deg >= min_tilt_deg && max_tilt_deg <= 80))
+    fail("need -60 <= min_tilt_deg <= max_tilt_deg <= 80");
+  if (!(yaw_sweep_deg >= 0 && yaw_sweep_deg <= 90)) fail("yaw_sweep_deg must be in [0, 90]");
+  if (!(axial_noise_base >= 0 && axial_noise_quad >= 0 && noise_clip > 0))
+    fail("axial noise parameters must be >= 0 and noise_clip > 0");
+  if (!(lateral_noise_px >= 0)) fail("lateral_noise_px must be >= 0");
+  if (!(dropout >= 0 && dropout < 1)) fail("dropout must be in [0, 1)");
+  if (!(grazing_start_deg > 0 && grazing_end_deg > grazing_start_deg && grazing_end_deg <= 90))
+    fail("need 0 < grazing_start_deg < grazing_end_deg <= 90");
+  if (!(drift_translation >= 0 && drift_rotation_deg >= 0)) fail("drift must be >= 0");
+  if (!(mesh_voxel_size >= 0.005 && mesh_voxel_size <= 0.5))
+    fail("mesh_voxel_size must be in [0.005, 0.5] m");
+  if (min_observations < 1) fail("min_observations must be >= 1");
+  if (!(max_fused_sigma > 0)) fail("max_fused_sigma must be > 0");
+  if (raw_pixel_stride < 1 || frame_pixel_stride < 1) fail("pixel strides must be >= 1");
+  if (threads < 0) fail("threads must be >= 0");
+}
+
+std::vector<Eigen::Isometry3d> MakeTrajectory(const Room& room, const ScannerConfig& cfg,
+                                              std::uint64_t seed) {
+  Rng rng(HashCombine(seed, 0x7a11ULL));
+  double min_edge = 1e9;
+  for (std::size_t i = 0; i < room.outline.size(); ++i) {
+    min_edge =
+        std::min(min_edge, (room.outline[(i + 1) % room.outline.size()] - room.outline[i]).norm());
+  }
+  const double inset = std::min(cfg.path_inset, 0.42 * min_edge);
+  const std::vector<Vec2> loop = InsetPolygon(room.outline, inset);
+  std::vector<double> cum(loop.size() + 1, 0.0);
+  for (std::size_t i = 0; i < loop.size(); ++i)
+    cum[i + 1] = cum[i] + (loop[(i + 1) % loop.size()] - loop[i]).norm();
+  const double perimeter = cum.back();
+  auto at = [&](double s) {
+    s = std::fmod(s, perimeter);
+    if (s < 0) s += perimeter;
+    std::size_t i = 0;
+    while (i + 1 < loop.size() && cum[i + 1] < s) ++i;
+    const Vec2 a = loop[i], b = loop[(i + 1) % loop.size()];
+    const double len = cum[i + 1] - cum[i];
+    return Vec2(a + (b - a) * (len > 0 ? (s - cum[i]) / len : 0.0));
+  };
+  const double s0 = rng.Uniform(0, perimeter);
+  const double direction = rng.Bernoulli(0.5) ? 1.0 : -1.0;
+  const double h_mid = rng.Uniform(cfg.min_camera_height, cfg.max_camera_height);
+  const double h_amp = 0.5 * (cfg.max_camera_height - cfg.min_camera_height);
+  const double phase[4] = {rng.Uniform(0, 2 * kPi), rng.Uniform(0, 2 * kPi),
+                           rng.Uniform(0, 2 * kPi), rng.Uniform(0, 2 * kPi)};
+  std::vector<Eigen::Isometry3d> poses;
+  const int n = cfg.frames;
+  for (int i = 0; i < n; ++i) {
+    const double u = static_cast<double>(i) / n;
+    const double s = s0 + direction * perimeter * u;
+    Vec2 p = at(s);
+    // Hand-held wobble.
+    p += Vec2(0.12 * std::sin(2 * kPi * 3 * u + phase[0]),
+              0.12 * std::cos(2 * kPi * 2 * u + phase[1]));
+    const double z =
+        std::clamp(h_mid + h_amp * std::sin(2 * kPi * 2 * u + phase[2]) + rng.Normal(0, 0.01),
+                   cfg.min_camera_height, cfg.max_camera_height);
+    // Look across the room at the far side of the loop, sweeping left and right.
+    const Vec2 target = at(s + 0.5 * perimeter + rng.Normal(0, 0.05 * perimeter));
+    double yaw = std::atan2(target.y() - p.y(), target.x() - p.x()) +
+                 Deg(cfg.yaw_sweep_deg) * std::sin(2 * kPi * 5 * u + phase[3]);
+    const double tilt =
+        Deg(0.5 * (cfg.min_tilt_deg + cfg.max_tilt_deg) +
+            0.5 * (cfg.max_tilt_deg - cfg.min_tilt_deg) * std::sin(2 * kPi * 4 * u + phase[1]));
+    const double roll = Deg(rng.Normal(0, 2.0));
+    const Vec3 fwd(std::cos(yaw) * std::cos(tilt), std::sin(yaw) * std::cos(tilt), -std::sin(tilt));
+    const Vec3 right = fwd.cross(Vec3::UnitZ()).normalized();
+    const Vec3 down = fwd.cross(right);
+    Eigen::Matrix3d r;
+    r.col(0) = right;
+    r.col(1) = down;
+    r.col(2) = fwd;
+    r = r * Eigen::AngleAxisd(roll, Vec3::UnitZ()).toRotationMatrix();
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() = r;
+    pose.translation() = Vec3(p.x(), p.y(), z);
+    poses.push_back(pose);
+  }
+  return poses;
+}
+
+ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t seed) {
+  cfg.Validate();
+#ifndef DIMR_HAVE_EMBREE
+  (void)room;
+  (void)seed;
+  throw Error("ScanRoom: this build of dimr has no Embree (libembree-dev) - cannot ray cast");
+#else
+  const EmbreeScene scene(room);
+  std::vector<Eigen::Isometry3d> poses = MakeTrajectory(room, cfg, seed);
+  // Drop poses from inside furniture (a person cannot stand there).
+  {
+    std::vector<Eigen::Isometry3d> kept;
+    for (const auto& p : poses) {
+      bool inside = false;
+      for (const auto& o : room.objects) {
+        if (o.role != ObjectRole::kFurniture && o.role != ObjectRole::kClutter) continue;
+        const Vec3 d = o.Rotation().transpose() * (p.translation() - o.translation);
+        if ((d.array().abs() < (0.5 * o.scale.array() + 0.15)).all()) inside = true;
+      }
+      if (!inside) kept.push_back(p);
+    }
+    poses.swap(kept);
+  }
+  const int w = cfg.width, h = cfg.height;
+  const double fx = 0.5 * w / std::tan(0.5 * Deg(cfg.fov_x_deg)), fy = fx;
+  const double cx = 0.5 * w, cy = 0.5 * h;
+  const double cos_start = std::cos(Deg(cfg.grazing_start_deg));
+  const double cos_end = std::cos(Deg(cfg.grazing_end_deg));
+  const int threads = std::max(
+      1, cfg.threads > 0 ? cfg.threads : static_cast<int>(std::thread::hardware_concurrency()));
+  std::vector<std::uint64_t> salts(room.objects.size());
+  for (std::size_t i = 0; i < salts.size(); ++i) salts[i] = HashCombine(seed, 1000 + i);
+
+  ScanResult result;
+  VoxelAccumulator acc(cfg.mesh_voxel_size);
+  HashSet64 observed;
+  Rng drift_rng(HashCombine(seed, 0xd71f7ULL));
+  Vec3 drift_t = Vec3::Zero(), drift_r = Vec3::Zero();
+  std::vector<std::vector<Return> > rows(h);
+  for (std::size_t f = 0; f < poses.size(); ++f) {
+    const Eigen::Isometry3d& truth = poses[f];
+    if (f > 0) {
+      drift_t += Vec3(drift_rng.Normal(), drift_rng.Normal(), 0.3 * drift_rng.Normal()) *
+                 cfg.drift_translation;
+      drift_r += Vec3(drift_rng.Normal(), drift_rng.Normal(), drift_rng.Normal()) *
+                 Deg(cfg.drift_rotation_deg);
+    }
+    Eigen::Isometry3d est = truth;
+    if (cfg.drift_translation > 0 || cfg.drift_rotation_deg > 0) {
+      const double angle = drift_r.norm();
+      if (angle > 0)
+        est.linear() =
+            truth.linear() * Eigen::AngleAxisd(angle, drift_r / angle).toRotationMatrix();
+      est.translation() += drift_t;
+    }
+    const Eigen::Matrix3f est_r = est.linear().cast<float>();
+    const Eigen::Vector3f est_t = est.translation().cast<float>();
+    const Eigen::Matrix3d rot = truth.linear();
+    const Vec3 org = truth.translation();
+    auto work = [&](int row_begin, int row_end) {
+      for (int v = row_begin; v < row_end; ++v) {
+        Rng rng(HashCombine(HashCombine(seed, f + 1), static_cast<std::uint64_t>(v)));
+        auto& out = rows[v];
+        out.clear();
+        for (int u = 0; u < w; ++u) {
+          const double pu = u + 0.5 + cfg.lateral_noise_px * rng.Normal();
+          const double pv = v + 0.5 + cfg.lateral_noise_px * rng.Normal();
+          const Vec3 dc((pu - cx) / fx, (pv - cy) / fy, 1.0);
+          const Vec3 dcn = dc.normalized();
+          const Vec3 dw = rot * dcn;
+          double t = 0;
+          Vec3 n;
+          const int obj = scene.Cast(org, dw, cfg.max_range * dc.norm() * 1.05, &t, &n);
+          const double r_drop = rng.Uniform();
+          const double r_noise = rng.Normal();
+          if (obj < 0) continue;
+          const PlacedObject& o = room.objects[obj];
+          const double z = t * dcn.z();
+          if (z < cfg.min_range || z > cfg.max_range) continue;
+          const double cosi = std::abs(n.dot(dw));
+          double p_drop = cfg.dropout;
+          if (cosi < cos_start) {
+            p_drop += (cos_start - cosi) / std::max(1e-9, cos_start - cos_end);
+          }
+          if (r_drop < p_drop) continue;
+          if (o.role == ObjectRole::kCeiling) continue;
+          const double sigma = cfg.axial_noise_base + cfg.axial_noise_quad * (z - 0.4) * (z - 0.4);
+          const double zm = z + sigma * std::clamp(r_noise, -cfg.noise_clip, cfg.noise_clip);
+          const Vec3 cam = dc * zm;  // dc has unit z
+          const Vec3 pw = org + rot * cam;
+          Return ret;
+          ret.cam = cam.cast<float>();
+          ret.world = est_r * ret.cam + est_t;
+          ret.bin = est_r * (dc * z).cast<float>() + est_t;
+          ret.color = Shade(o, salts[obj], pw, n, dw, &rng);
+          ret.object = obj;
+          ret.weight = static_cast<float>(1.0 / (sigma * sigma));
+          ret.cell = CellKey(org + dw * t, obj);
+          ret.keep_frame = (u % cfg.frame_pixel_stride == 0) && (v % cfg.frame_pixel_stride == 0);
+          ret.keep_raw = (u % cfg.raw_pixel_stride == 0) && (v % cfg.raw_pixel_stride == 0);
+          out.push_back(ret);
+        }
+      }
+    };
+    if (threads == 1) {
+      work(0, h);
+    } else {
+      std::vector<std::thread> pool;
+      for (int k = 0; k < threads; ++k)
+        pool.emplace_back(work, h * k / threads, h * (k + 1) / threads);
+      for (auto& t : pool) t.join();
+    }
+    result.rays += static_cast<std::size_t>(w) * h;
+    ScanFrame frame;
+    frame.pose = est;
+    frame.true_pose = truth;
+    std::uint64_t last_cell = ~0ULL;
+    for (int v = 0; v < h; ++v) {
+      for (const Return& r : rows[v]) {
+        ++result.returns;
+        if (r.cell != last_cell) {
+          observed.Insert(r.cell);
+          last_cell = r.cell;
+        }
+        if (cfg.density == ScanDensity::kMesh) {
+          acc.Add(r.bin, r.world, r.color, r.object, r.weight);
+        } else if (r.keep_raw) {
+          result.points.push_back(r.world.cast<double>());
+          result.colors.push_back(r.color);
+          result.object.push_back(r.object);
+        }
+        if (cfg.keep_frames && r.keep_frame) {
+          frame.points.push_back(r.cam);
+          frame.colors.push_back(r.color);
+        }
+      }
+    }
+    result.poses.push_back(est);
+    if (cfg.keep_frames) result.frames.push_back(std::move(frame));
+  }
+  if (cfg.density == ScanDensity::kMesh) {
+    const auto entries = acc.Entries();
+    for (std::size_t i = 0; i < entries.size();) {
+      std::size_t j = i, best = i;
+      while (j < entries.size() && entries[j].voxel == entries[i].voxel) {
+        if (entries[j].count > entries[best].count) best = j;
+        ++j;
+      }
+      const auto& e = entries[best];
+      // Fused standard error of the weighted mean: keep only well-observed voxels (TSDF-like).
+      const double fused_sigma = 1.0 / std::sqrt(std::max(e.w, 1e-12));
+      if (static_cast<int>(e.count) >= cfg.min_observations && fused_sigma <= cfg.max_fused_sigma) {
+        const double c = e.count;
+        const Eigen::Vector3f p(static_cast<float>(e.sx / e.w), static_cast<float>(e.sy / e.w),
+                                static_cast<float>(e.sz / e.w));
+        result.points.push_back(p.cast<double>());
+        result.colors.emplace_back(static_cast<std::uint8_t>(std::lround(e.r / c)),
+                                   static_cast<std::uint8_t>(std::lround(e.g / c)),
+                                   static_cast<std::uint8_t>(std::lround(e.b / c)));
+        result.object.push_back(e.object);
+      }
+      i = j;
+    }
+  }
+  result.observed_cells = observed.Sorted();
+  return result;
+#endif
+}
+
+}  // namespace dimr::data
