@@ -10,8 +10,8 @@ namespace dimr::geometry {
 
 struct SurfaceSamples {
   std::vector<Vec3> points;
-  std::vector<Vec3> normals;   // unit face normals of the sampled faces
-  std::vector<int> face_index; // face each sample lies on
+  std::vector<Vec3> normals;    // unit face normals of the sampled faces
+  std::vector<int> face_index;  // face each sample lies on
 };
 
 // `n` points uniformly distributed over the surface (face chosen with probability proportional
