@@ -306,9 +306,12 @@ void FourLegTable(Builder& b, Rng& r, bool coffee) {
   const double H = coffee ? r.Uniform(0.35, 0.5) : r.Uniform(0.7, 0.78);
   const double t = r.Uniform(0.02, 0.05);
   const double lt = r.Uniform(0.03, 0.08);
-  const double inset = r.Uniform(0.0, 0.08);
+  double inset = r.Uniform(0.0, 0.08);
   const bool round_legs = r.Chance(0.4);
-  RectTableTop(b, D / 2, L / 2, H, t, r.Chance(0.3));
+  const bool round_corners = r.Chance(0.3);
+  // Rounded corners cut into the corner: keep the legs under the top.
+  if (round_corners) inset = std::max(inset, 0.22 * std::min(D, L) / 2);
+  RectTableTop(b, D / 2, L / 2, H, t, round_corners);
   const double hx = D / 2 - inset, hy = L / 2 - inset;
   FourLegs(b, hx, hy, 0.0, H - t, lt, round_legs, r.Chance(0.2) ? r.Uniform(0.0, 0.04) : 0.0);
   if (r.Chance(coffee ? 0.3 : 0.6)) {  // apron
@@ -691,7 +694,7 @@ void Bookshelf(Builder& b, Rng& r, int style) {
 // ---------------------------------------------------------------------------------------
 void Sofa(Builder& b, Rng& r, int style) {
   // style 0: with arms, 1: armless, 2: L-shape (chaise on one side, arms optional).
-  const int seats = style == 2 ? r.Int(2, 3) : r.Int(1, 3);
+  const int seats = style == 0 ? r.Int(1, 3) : r.Int(2, 3);
   const double sw = r.Uniform(0.5, 0.7);
   const double D = r.Uniform(0.8, 1.0);
   const double feet = r.Uniform(0.03, 0.12);
