@@ -58,25 +58,30 @@ void ParallelChunks(std::size_t n, std::size_t min_chunk, const Fn& fn) {
   for (std::thread& th : pool) th.join();
 }
 
-}  // namespace
-
-Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+// A triangle is treated as degenerate (collapsed to a segment or a point, or so flat that its
+// normal is meaningless: sin(angle at a) < 1e-12) when this holds.
+inline bool IsDegenerate(const Vec3& a, const Vec3& b, const Vec3& c) {
   const Vec3 ab = b - a;
   const Vec3 ac = c - a;
-  // Degenerate triangle (collapsed to a segment or a point, or so flat that its normal is
-  // meaningless: sin(angle at a) < 1e-12): the closest point of the union of its edges.
-  const double n2 = ab.cross(ac).squaredNorm();
-  if (!(n2 > 1e-24 * ab.squaredNorm() * ac.squaredNorm())) {
-    const Vec3 q0 = ClosestOnSegment(p, a, b);
-    const Vec3 q1 = ClosestOnSegment(p, b, c);
-    const Vec3 q2 = ClosestOnSegment(p, c, a);
-    const double d0 = (q0 - p).squaredNorm();
-    const double d1 = (q1 - p).squaredNorm();
-    const double d2 = (q2 - p).squaredNorm();
-    if (d0 <= d1 && d0 <= d2) return q0;
-    return d1 <= d2 ? q1 : q2;
-  }
-  // Voronoi regions of the vertices, the edges and the face.
+  return !(ab.cross(ac).squaredNorm() > 1e-24 * ab.squaredNorm() * ac.squaredNorm());
+}
+
+// Degenerate triangle: the closest point of the union of its edges.
+inline Vec3 ClosestOnDegenerate(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 q0 = ClosestOnSegment(p, a, b);
+  const Vec3 q1 = ClosestOnSegment(p, b, c);
+  const Vec3 q2 = ClosestOnSegment(p, c, a);
+  const double d0 = (q0 - p).squaredNorm();
+  const double d1 = (q1 - p).squaredNorm();
+  const double d2 = (q2 - p).squaredNorm();
+  if (d0 <= d1 && d0 <= d2) return q0;
+  return d1 <= d2 ? q1 : q2;
+}
+
+// Proper triangle: Voronoi regions of the vertices, the edges and the face.
+inline Vec3 ClosestOnProper(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a;
+  const Vec3 ac = c - a;
   const Vec3 ap = p - a;
   const double d1 = ab.dot(ap);
   const double d2 = ac.dot(ap);
@@ -109,6 +114,12 @@ Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const V
   return a + ab * (vb * inv) + ac * (vc * inv);
 }
 
+}  // namespace
+
+Vec3 ClosestPointOnTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  return IsDegenerate(a, b, c) ? ClosestOnDegenerate(p, a, b, c) : ClosestOnProper(p, a, b, c);
+}
+
 MeshDistance::MeshDistance(const TriangleMesh& mesh) {
   const std::size_t nv = mesh.vertices.size();
   tris_.reserve(mesh.faces.size());
@@ -125,8 +136,10 @@ MeshDistance::MeshDistance(const TriangleMesh& mesh) {
                               std::to_string(f) + ") is not finite");
       }
     }
-    tris_.push_back(Tri{mesh.vertices[face[0]], mesh.vertices[face[1]], mesh.vertices[face[2]],
-                        static_cast<int>(f)});
+    const Vec3& a = mesh.vertices[face[0]];
+    const Vec3& b = mesh.vertices[face[1]];
+    const Vec3& c = mesh.vertices[face[2]];
+    tris_.push_back(Tri{a, b, c, static_cast<int>(f), IsDegenerate(a, b, c)});
   }
   if (tris_.empty()) return;
   nodes_.reserve(2 * tris_.size() / kLeafSize + 2);
@@ -267,7 +280,8 @@ ClosestPoint MeshDistance::Query(const Vec3& p) const {
     if (node.left < 0) {
       for (int i = node.begin; i < node.end; ++i) {
         const Tri& t = tris_[i];
-        const Vec3 q = ClosestPointOnTriangle(p, t.a, t.b, t.c);
+        const Vec3 q = t.degenerate ? ClosestOnDegenerate(p, t.a, t.b, t.c)
+                                    : ClosestOnProper(p, t.a, t.b, t.c);
         const double d2 = (q - p).squaredNorm();
         if (d2 < best) {
           best = d2;

@@ -43,6 +43,7 @@ class MeshDistance {
   struct Tri {
     Vec3 a, b, c;
     int face;
+    bool degenerate;  // handled as the union of its edges (see ClosestPointOnTriangle)
   };
   struct Node {
     AABB box;
