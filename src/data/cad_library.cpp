@@ -542,7 +542,8 @@ void SwivelChair(Builder& b, Rng& r) {
     const double ah = r.Uniform(0.18, 0.26);
     for (int s = -1; s <= 1; s += 2) {
       const double y = s * (W / 2 + 0.03);
-      b.Box(Vec3(-0.02, y, sh - st + (ah + st) / 2), Vec3(0.04, 0.03, ah + st), "arm");
+      const double z0 = sh - st - 0.03;  // the post stands on the bar under the seat
+      b.Box(Vec3(-0.02, y, 0.5 * (z0 + sh + ah)), Vec3(0.04, 0.03, sh + ah - z0), "arm");
       b.Box(Vec3(0.0, y, sh + ah), Vec3(0.25, 0.07, 0.03), "arm");
       b.Box(Vec3(-0.02, 0.5 * (y + s * 0.08), sh - st - 0.02), Vec3(0.04, std::abs(y) - 0.07, 0.02),
             "arm");
@@ -937,7 +938,7 @@ void Display(Builder& b, Rng& r, int style) {
     b.Loft({Transformed(RectRing(0, 0, 0.5 * Hs - 0.01, 0.5 * W - 0.01, 0.0), back, c),
             Transformed(RectRing(0, 0, 0.5 * bh, 0.5 * bw, depth), back, c)},
            false, "housing");
-    b.BoxMinMax(Vec3(-depth * 0.6, -W * 0.3, 0), Vec3(-0.05, W * 0.3, z0 + 0.005), "stand");
+    b.BoxMinMax(Vec3(-depth * 0.5, -W * 0.3, 0), Vec3(-0.02, W * 0.3, z0 + 0.015), "stand");
     return;
   }
   const double W = style == 0 ? r.Uniform(0.45, 0.8) : r.Uniform(0.8, 1.8);
@@ -1027,11 +1028,11 @@ void Bathtub(Builder& b, Rng& r, int style) {
       }
     }
   }
-  if (r.Chance(0.35)) {  // floor-standing tap beside the head end
-    const double y = L / 2 + r.Uniform(0.06, 0.12), top = H + r.Uniform(0.15, 0.3);
-    b.Cylinder(Vec3(0, y, 0), 0.05, 0.05, 0.015, 16, "faucet");
-    b.Rod(Vec3(0, y, 0.01), Vec3(0, y, top), 0.015, 10, "faucet");
-    b.Rod(Vec3(0, y + 0.015, top - 0.015), Vec3(0, L / 2 - 0.12, top - 0.015), 0.012, 10, "faucet");
+  if (r.Chance(0.35)) {  // deck-mounted tap standing in the rim at the head end
+    const double y = L / 2 - 0.5 * (wall - lip), top = H + r.Uniform(0.12, 0.25);
+    b.Rod(Vec3(0, y, H - 0.02), Vec3(0, y, top), 0.015, 10, "faucet");
+    b.Rod(Vec3(0, y + 0.015, top - 0.015), Vec3(0, y - r.Uniform(0.1, 0.2), top - 0.015), 0.012, 10,
+          "faucet");
   }
   if (style == 1) {
     b.Loft({SuperRing(0, 0, Wd / 2 * taper * 0.85, L / 2 * taper * 0.85, ex, n, 0.0),
@@ -1189,10 +1190,10 @@ void Curtain(Builder& b, Rng& r) {
   for (int i = 0; i < folds; ++i) {
     const double y0 = -W / 2 + i * fw, y1 = y0 + fw;
     const double xa = (i % 2 == 0) ? -depth : -0.01, xb = (i % 2 == 0) ? -0.01 : -depth;
-    const Vec3 a(xa, y0, 0.5 * H), c(xb, y1, 0.5 * H);
-    b.Beam(a, c, 0.008, H - 0.04, "cloth");
+    const Vec3 a(xa, y0, 0.5 * H + 0.01), c(xb, y1, 0.5 * H + 0.01);  // hem 1 cm above the floor
+    b.Beam(a, c, 0.008, H - 0.02, "cloth");
   }
-  b.Rod(Vec3(-depth * 0.5, -W / 2 - 0.1, H + 0.03), Vec3(-depth * 0.5, W / 2 + 0.1, H + 0.03),
+  b.Rod(Vec3(-depth * 0.5, -W / 2 - 0.1, H + 0.01), Vec3(-depth * 0.5, W / 2 + 0.1, H + 0.01),
         0.015, 10, "rod");
 }
 
@@ -1286,6 +1287,8 @@ void Plant(Builder& b, Rng& r) {
         RotZ(r.Uniform(0, kPi)) * RotX(r.Uniform(-0.6, 0.6)) * RotY(r.Uniform(-0.6, 0.6));
     const double s = r.Uniform(0.08, 0.2);
     b.Box(c, Vec3(s, s * r.Uniform(0.5, 1.0), s * r.Uniform(0.4, 0.9)), "foliage", R);
+    const Vec3 top(0, 0, ph + stem - 0.02);
+    if ((c - top).norm() > 0.03) b.Rod(top, c, 0.006, 6, "twig");  // leaves hang on twigs
   }
 }
 
@@ -1300,7 +1303,7 @@ void Books(Builder& b, Rng& r) {
       z += t;
     } else {
       b.BoxMinMax(Vec3(-d / 2, y, 0), Vec3(d / 2, y + t, h), "book");
-      y += t + 0.001;
+      y += t;
     }
   }
 }

@@ -94,6 +94,39 @@ int FindPart(const CadModel& m, const std::string& name) {
   return -1;
 }
 
+// Number of connected components of the parts under "bounding boxes overlap or touch" (a
+// necessary condition for a connected union: a floating part always shows up here).
+int BoxComponents(const CadModel& m) {
+  const int n = m.NumParts();
+  std::vector<AABB> box(n);
+  for (int i = 0; i < n; ++i) box[i] = PartBounds(m, i);
+  std::vector<int> comp(n, -1);
+  int count = 0;
+  for (int s = 0; s < n; ++s) {
+    if (comp[s] >= 0) continue;
+    std::vector<int> stack = {s};
+    comp[s] = count;
+    while (!stack.empty()) {
+      const int i = stack.back();
+      stack.pop_back();
+      for (int j = 0; j < n; ++j) {
+        if (comp[j] >= 0) continue;
+        bool touch = true;
+        for (int a = 0; a < 3; ++a) {
+          touch = touch && box[i].min[a] <= box[j].max[a] + 1e-9 &&
+                  box[j].min[a] <= box[i].max[a] + 1e-9;
+        }
+        if (touch) {
+          comp[j] = count;
+          stack.push_back(j);
+        }
+      }
+    }
+    ++count;
+  }
+  return count;
+}
+
 void CheckWellFormed(const CadModel& m, const std::string& what) {
   SCOPED_TRACE(what);
   ASSERT_FALSE(m.mesh.faces.empty());
@@ -164,6 +197,21 @@ TEST(CadLibrary, DistractorsWellFormed) {
   EXPECT_EQ(labels, (std::set<int>{-1, kBed, kDoor, kWindow, kPicture, kCurtain, kOtherFurniture,
                                    kKitchenCabinet}));
   EXPECT_NE(GenerateDistractor(0, 1).model_id, GenerateCadModel(0, 1).model_id);
+}
+
+TEST(CadLibrary, NoFloatingParts) {
+  for (int c = 0; c < kNumCadClasses; ++c) {
+    for (std::uint64_t s = 0; s < 100; ++s) {
+      const CadModel m = GenerateCadModel(c, s);
+      EXPECT_EQ(BoxComponents(m), 1) << m.family << " seed " << s;
+    }
+  }
+  for (int k = 0; k < NumDistractorKinds(); ++k) {
+    for (std::uint64_t s = 0; s < 50; ++s) {
+      const CadModel m = GenerateDistractor(k, s);
+      EXPECT_EQ(BoxComponents(m), 1) << m.family << " seed " << s;
+    }
+  }
 }
 
 TEST(CadLibrary, BadArgumentsThrow) {
