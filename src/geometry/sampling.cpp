@@ -86,14 +86,12 @@ SurfaceSamples SampleSurface(const TriangleMesh& mesh, std::size_t n, std::uint6
 SurfaceSamples SampleSurfaceEven(const TriangleMesh& mesh, std::size_t n, std::uint64_t seed,
                                  double radius) {
   if (std::isnan(radius)) throw InvalidArgument("SampleSurfaceEven: radius is NaN");
+  mesh.Validate("SampleSurfaceEven mesh");
   SurfaceSamples out;
   if (n == 0) return out;
   if (radius <= 0.0) {
     const double area = mesh.SurfaceArea();
-    if (!(area > 0.0)) {
-      mesh.Validate("SampleSurfaceEven mesh");
-      return out;
-    }
+    if (!(area > 0.0)) return out;
     radius = std::sqrt(area / (3.0 * static_cast<double>(n)));
   }
   if (!std::isfinite(radius)) throw InvalidArgument("SampleSurfaceEven: radius is not finite");

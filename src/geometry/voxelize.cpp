@@ -18,6 +18,8 @@ namespace {
 constexpr int kMaxReferenceDim = 1024;
 // Cells of a dense grid we are willing to allocate.
 constexpr double kMaxGridCells = 4.0e9;
+// Slack, in cell units, when turning a triangle's bounding box into candidate cells/lines.
+constexpr double kEps = 1e-7;
 
 // Projection interval of the triangle (vertices relative to the box centre) on `axis`
 // compared with the box radius on that axis. True if `axis` separates them. Touching
@@ -286,8 +288,10 @@ ReferenceVoxels VoxelizeReference(const TriangleMesh& mesh, double pitch, bool e
     const Vec3 hi = (a.cwiseMax(b).cwiseMax(c) - rv.t) / s;
     Vec3i i0, i1;
     for (int k = 0; k < 3; ++k) {
-      i0[k] = ClampIndex(std::ceil(lo[k] - 1.0 - grow) - 1.0, d);  // one extra cell of slack
-      i1[k] = ClampIndex(std::floor(hi[k] + grow) + 1.0, d);
+      // Candidates: enlarged cells overlapping the triangle's bbox (kEps absorbs rounding
+      // of the division; the exact SAT test decides).
+      i0[k] = ClampIndex(std::ceil(lo[k] - 1.0 - grow - kEps), d);
+      i1[k] = ClampIndex(std::floor(hi[k] + grow + kEps), d);
     }
     for (int k = i0.z(); k <= i1.z(); ++k) {
       for (int j = i0.y(); j <= i1.y(); ++j) {
@@ -321,11 +325,12 @@ ReferenceVoxels VoxelizeReference(const TriangleMesh& mesh, double pitch, bool e
       const double uhi = (std::max({x0, x1, x2}) - rv.t[ua]) / s - 0.5;
       const double vlo = (std::min({y0, y1, y2}) - rv.t[va]) / s - 0.5;
       const double vhi = (std::max({y0, y1, y2}) - rv.t[va]) / s - 0.5;
-      // One line of slack on each side: the exact inclusive test below decides.
-      const int iu0 = ClampIndex(std::ceil(ulo) - 1.0, d),
-                iu1 = ClampIndex(std::floor(uhi) + 1.0, d);
-      const int iv0 = ClampIndex(std::ceil(vlo) - 1.0, d),
-                iv1 = ClampIndex(std::floor(vhi) + 1.0, d);
+      // Lines whose centre lies in the bbox (kEps absorbs rounding of the division; the
+      // exact inclusive test below decides).
+      const int iu0 = ClampIndex(std::ceil(ulo - kEps), d);
+      const int iu1 = ClampIndex(std::floor(uhi + kEps), d);
+      const int iv0 = ClampIndex(std::ceil(vlo - kEps), d);
+      const int iv1 = ClampIndex(std::floor(vhi + kEps), d);
       const double area2 = EdgeFunction(x0, y0, x1, y1, x2, y2);
       if (area2 == 0.0) continue;  // projects to a segment: neighbours carry its hits
       for (int iv = iv0; iv <= iv1; ++iv) {

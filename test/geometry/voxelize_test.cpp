@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "dimr/geometry/error.h"
 
@@ -146,8 +147,14 @@ TEST(VoxelGrid, SphereFilledMatchesVolume) {
   const TriangleMesh sphere = UvSphere(r, 96, 192);
   VoxelGrid g = MakeGrid(sphere.Bounds(), v, 1);
   VoxelizeFilled(sphere, &g);
+  VoxelGrid shell = MakeGrid(sphere.Bounds(), v, 1);
+  VoxelizeSurface(sphere, &shell);
   const double expected = 4.0 / 3.0 * M_PI * r * r * r / (v * v * v);
-  EXPECT_NEAR(static_cast<double>(g.Count()) / expected, 1.0, 0.05);
+  const double filled = static_cast<double>(g.Count());
+  // Surface cells straddle the sphere: the solid over-counts by about half the shell.
+  EXPECT_GT(filled / expected, 1.0);
+  EXPECT_LT(filled / expected, 1.035);
+  EXPECT_NEAR((filled - 0.5 * shell.Count()) / expected, 1.0, 0.005);
   // Per cell: well inside -> filled, well outside -> empty (inscribed radius >= 0.999 r).
   const double slack = std::sqrt(3.0) / 2 * v;
   std::size_t checked = 0;
@@ -274,6 +281,81 @@ TEST(ReferenceVoxels, SphereUnionApproximatesVolume) {
   // Centre cell is carved in; corner cell is not.
   EXPECT_TRUE(rv.united[rv.Index(20, 20, 20)]);
   EXPECT_FALSE(rv.united[rv.Index(0, 0, 0)]);
+}
+
+// Independent, slow construction of the carving set C for one cell: for each axis the line
+// through the cell centre is intersected with every triangle via its 3-D plane equation and
+// 3-D edge/normal sign tests (no binning, no 2-D projection).
+bool NaiveCarved(const TriangleMesh& m, const Vec3& c) {
+  for (int a = 0; a < 3; ++a) {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (const Vec3i& f : m.faces) {
+      const Vec3 &p0 = m.vertices[f[0]], &p1 = m.vertices[f[1]], &p2 = m.vertices[f[2]];
+      const Vec3 n = (p1 - p0).cross(p2 - p0);
+      if (n[a] == 0.0) continue;
+      Vec3 q = c;
+      q[a] = p0[a] - (n.dot(c - p0) - n[a] * (c[a] - p0[a])) / n[a];
+      const double s0 = (p1 - p0).cross(q - p0).dot(n);
+      const double s1 = (p2 - p1).cross(q - p1).dot(n);
+      const double s2 = (p0 - p2).cross(q - p2).dot(n);
+      if (s0 >= 0 && s1 >= 0 && s2 >= 0) {
+        lo = std::min(lo, q[a]);
+        hi = std::max(hi, q[a]);
+      }
+    }
+    if (!(lo <= c[a] && c[a] <= hi)) return false;
+  }
+  return true;
+}
+
+TEST(ReferenceVoxels, UnionMatchesNaiveCarvingOnRotatedParts) {
+  // Overlapping parts, a cavity and a sphere, in a generic orientation (no exact ties).
+  TriangleMesh m = Box(Vec3(0, 0, 0), Vec3(0.6, 0.3, 0.5));
+  m.Append(Box(Vec3(0.4, 0.1, 0.2), Vec3(0.9, 0.8, 0.4)));
+  m.Append(Box(Vec3(0.1, 0.1, 0.1), Vec3(0.3, 0.2, 0.3), /*inverted=*/true));
+  TriangleMesh ball = UvSphere(0.2, 12, 24);
+  ball.Transform(Eigen::Matrix3d::Identity(), Vec3(0.7, 0.5, 0.7));
+  m.Append(ball);
+  m.Transform(Eigen::AngleAxisd(0.61, Vec3(1, 2, 3).normalized()).toRotationMatrix(),
+              Vec3(-3.1, 0.7, 12.3));
+  const ReferenceVoxels rv = VoxelizeReference(m, 0.06);
+  ASSERT_GE(rv.d, 14);
+  std::size_t carved_only = 0;
+  for (int k = 0; k < rv.d; ++k) {
+    for (int j = 0; j < rv.d; ++j) {
+      for (int i = 0; i < rv.d; ++i) {
+        const std::size_t idx = rv.Index(i, j, k);
+        const bool carved = NaiveCarved(m, rv.CellCentre(i, j, k));
+        ASSERT_EQ(rv.united[idx] != 0, rv.surface[idx] != 0 || carved) << i << " " << j << " " << k;
+        carved_only += carved && !rv.surface[idx];
+      }
+    }
+  }
+  EXPECT_GT(carved_only, 50u);  // the test exercises C, not just S
+  // S is part of U, and every cell holding a surface point is in S.
+  const double s = rv.extent / rv.d;
+  for (int k = 0; k < rv.d; ++k) {
+    for (int j = 0; j < rv.d; ++j) {
+      for (int i = 0; i < rv.d; ++i) {
+        if (!rv.surface[rv.Index(i, j, k)]) continue;
+        ASSERT_TRUE(rv.united[rv.Index(i, j, k)]);
+      }
+    }
+  }
+  for (const Vec3i& f : m.faces) {
+    for (double u : {0.1, 0.45, 0.8}) {
+      for (double v : {0.1, 0.45}) {
+        if (u + v > 1) continue;
+        const Vec3& p0 = m.vertices[f[0]];
+        const Vec3 p = p0 + u * (m.vertices[f[1]] - p0) + v * (m.vertices[f[2]] - p0);
+        const Vec3 q = (p - rv.t) / s;
+        const int i = std::min(rv.d - 1, static_cast<int>(q.x()));
+        const int j = std::min(rv.d - 1, static_cast<int>(q.y()));
+        const int kk = std::min(rv.d - 1, static_cast<int>(q.z()));
+        ASSERT_TRUE(rv.surface[rv.Index(i, j, kk)]);
+      }
+    }
+  }
 }
 
 TEST(ReferenceVoxels, IsFilledRoundsHalfToEven) {
