@@ -49,7 +49,8 @@ struct CadModel {
   }
 };
 
-// One model of CAD class `cad_class` (0..7), varied by `seed` (same seed -> same bytes).
+// One model of CAD class `cad_class` (0..7), varied by `seed` (same seed -> same bytes on
+// every platform). Pure function, no shared mutable state: safe to call from many threads.
 // Throws dimr::InvalidArgument for a class out of range.
 CadModel GenerateCadModel(int cad_class, std::uint64_t seed);
 
