@@ -234,8 +234,12 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
                                  (box.max - box.min).maxCoeff()});
   const double tol = options.eps * scale;
 
-  Poly cur, next;
-  cur.verts.reserve(64);
+  // Per-thread scratch buffers: the decoder calls this hundreds of times per object, and
+  // reusing the capacity removes nearly all allocations from the clipping loop.
+  thread_local Poly cur, next;
+  thread_local Clipper clipper;
+  cur.Clear();
+  cur.verts.clear();
   for (int i = 0; i < 8; ++i) {
     cur.verts.emplace_back(i & 1 ? box.max.x() : box.min.x(), i & 2 ? box.max.y() : box.min.y(),
                            i & 4 ? box.max.z() : box.min.z());
@@ -247,7 +251,6 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
   cur.AddFace({0, 4, 6, 2}, -1);  // x = min
   cur.AddFace({1, 3, 7, 5}, -1);  // x = max
 
-  Clipper clipper;
   for (std::size_t i = 0; i < planes.size(); ++i) {
     Vec3 n = planes[i].normal;
     double d = planes[i].offset;
@@ -268,12 +271,12 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
     if (r == 1) std::swap(cur, next);
   }
 
-  out.vertices = std::move(cur.verts);
+  out.vertices.assign(cur.verts.begin(), cur.verts.end());
   out.faces.reserve(cur.num_faces());
   for (int f = 0; f < cur.num_faces(); ++f) {
     out.faces.emplace_back(cur.idx.begin() + cur.start[f], cur.idx.begin() + cur.start[f + 1]);
   }
-  out.face_plane = std::move(cur.plane);
+  out.face_plane.assign(cur.plane.begin(), cur.plane.end());
   if (out.faces.size() < 4 || !(out.Volume() > 0.0)) return Polytope();
   return out;
 }
