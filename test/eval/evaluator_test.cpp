@@ -190,6 +190,7 @@ TEST_F(EvalFixture, Errors) {
   geometry::WritePly((root_ / "pred" / "scene0000_00_9_lamp_0.5.ply").string(),
                      Box({0, 0, 0}, {1, 1, 1}));
   EXPECT_THROW(ListMeshFolder((root_ / "pred").string()), ParseError);
+  fs::remove(root_ / "pred" / "scene0000_00_9_lamp_0.5.ply");
   // PCR without point GT.
   EvalInputs no_pts = Load();
   no_pts.pcr_scenes.clear();
