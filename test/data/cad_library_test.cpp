@@ -10,6 +10,7 @@
 #include <map>
 #include <set>
 #include <string>
+#include <thread>
 #include <utility>
 #include <vector>
 
@@ -256,6 +257,20 @@ TEST(CadLibrary, DeterministicAndSeedSensitive) {
   }
   // Ids depend on the class too.
   EXPECT_NE(GenerateCadModel(0, 5).model_id, GenerateCadModel(1, 5).model_id);
+}
+
+TEST(CadLibrary, ThreadSafeAndIdenticalToSerial) {
+  std::vector<CadModel> serial;
+  for (int i = 0; i < 64; ++i) serial.push_back(GenerateCadModel(i % kNumCadClasses, 500 + i));
+  std::vector<CadModel> parallel(64);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([t, &parallel]() {
+      for (int i = t; i < 64; i += 4) parallel[i] = GenerateCadModel(i % kNumCadClasses, 500 + i);
+    });
+  }
+  for (auto& th : threads) th.join();
+  for (int i = 0; i < 64; ++i) EXPECT_TRUE(SameBytes(serial[i], parallel[i])) << i;
 }
 
 TEST(CadLibrary, IntraClassVariety) {
