@@ -113,7 +113,11 @@ class Clipper {
       }
       if (!twin) cap_.emplace_back(c.second, c.first);
     }
-    if (cap_.size() < 3) return 2;
+    // (No cap edge at all: only vertices lying on straight edges were cut off; the faces
+    // around them already close up.)
+    // Chain the cap edges into loops. A walk that comes back to one of its own vertices
+    // (a pinch, possible only through tolerance decisions) is split there, so that every cap
+    // face is a simple polygon.
     used_.assign(cap_.size(), 0);
     std::size_t remaining = cap_.size();
     while (remaining > 0) {
@@ -121,11 +125,21 @@ class Clipper {
       while (used_[first]) ++first;
       used_[first] = 1;
       --remaining;
-      const int loop_start = static_cast<int>(next.idx.size());
-      next.idx.push_back(cap_[first].first);
+      walk_.assign(1, cap_[first].first);
       int cur_v = cap_[first].second;
-      while (cur_v != cap_[first].first) {
-        next.idx.push_back(cur_v);
+      while (true) {
+        if (cur_v == walk_[0]) {
+          if (!EmitLoop(next, 0, plane_id)) return 2;
+          break;
+        }
+        const auto it = std::find(walk_.begin() + 1, walk_.end(), cur_v);
+        if (it != walk_.end()) {
+          const std::size_t j = static_cast<std::size_t>(it - walk_.begin());
+          if (!EmitLoop(next, j, plane_id)) return 2;
+          walk_.resize(j + 1);  // cur_v stays as the last vertex of the walk
+        } else {
+          walk_.push_back(cur_v);
+        }
         std::size_t j = 0;
         while (j < cap_.size() && (used_[j] || cap_[j].first != cur_v)) ++j;
         if (j == cap_.size()) return 2;  // open chain: inconsistent topology
@@ -133,9 +147,6 @@ class Clipper {
         --remaining;
         cur_v = cap_[j].second;
       }
-      if (static_cast<int>(next.idx.size()) - loop_start < 3) return 2;
-      next.start.push_back(static_cast<int>(next.idx.size()));
-      next.plane.push_back(plane_id);
     }
     Compact(next);
     return 1;
@@ -156,6 +167,15 @@ class Clipper {
     on_plane_.push_back(1);
     cache_.push_back({a, b, v});
     return v;
+  }
+
+  // Appends walk_[from..] as a cap face; false if it has fewer than 3 vertices.
+  bool EmitLoop(Poly& next, std::size_t from, int plane_id) {
+    if (walk_.size() - from < 3) return false;
+    next.idx.insert(next.idx.end(), walk_.begin() + from, walk_.end());
+    next.start.push_back(static_cast<int>(next.idx.size()));
+    next.plane.push_back(plane_id);
+    return true;
   }
 
   // Drops unreferenced vertices and renumbers the faces.
@@ -179,6 +199,7 @@ class Clipper {
   std::vector<EdgeVertex> cache_;
   std::vector<std::pair<int, int>> cand_, cap_;
   std::vector<char> used_;
+  std::vector<int> walk_;
   std::vector<int> remap_;
   std::vector<Vec3> tmp_;
 };
@@ -230,8 +251,8 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
   }
   Polytope out;
   if (!((box.max - box.min).minCoeff() > 0.0)) return out;  // flat bounds: zero volume
-  const double scale = std::max({box.min.cwiseAbs().maxCoeff(), box.max.cwiseAbs().maxCoeff(),
-                                 (box.max - box.min).maxCoeff()});
+  // Rounding errors of n.x + d grow with the magnitude of the coordinates.
+  const double scale = std::max(box.min.cwiseAbs().maxCoeff(), box.max.cwiseAbs().maxCoeff());
   const double tol = options.eps * scale;
 
   // Per-thread scratch buffers: the decoder calls this hundreds of times per object, and

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <map>
@@ -373,6 +374,145 @@ TEST(Polytope, LatticePlanesWithCoincidences) {
     }
   }
   EXPECT_GT(non_empty, 50);
+}
+
+// Every vertex satisfies every plane within 1e-9 (the default tolerance for [-1,1]^3).
+void CheckVerticesInside(const Polytope& p, const std::vector<HalfSpace>& planes) {
+  for (const Vec3& v : p.vertices) {
+    ASSERT_TRUE(v.allFinite());
+    for (const HalfSpace& h : planes) {
+      const auto [n, d] = Normalized(h);
+      EXPECT_LE(n.dot(v) + d, 1e-9 + 1e-15);
+    }
+  }
+}
+
+std::vector<HalfSpace> FromRows(const std::vector<std::array<double, 4>>& rows) {
+  std::vector<HalfSpace> planes;
+  for (const auto& r : rows) planes.push_back(H(r[0], r[1], r[2], r[3]));
+  return planes;
+}
+
+// Regression cases found by a 10^6-set stress run (planes passing within 1e-12..1e-6 of
+// common points). The first makes a cap touch itself at one vertex (it must be split into
+// two simple faces); the second cuts off only a vertex lying on a straight edge (no cap).
+TEST(Polytope, ToleranceRegressionPinchedCap) {
+  const auto planes = FromRows(
+      {{-0x1.82af438bafc12p-3, 0x1.280c47f07fe4ap-1, 0x1.96644c3986b6bp-1, -0x1.c8ad944f83ccfp-6},
+       {-0x1.e2a09e767f622p-4, 0x1.c95b92fcd3d87p-1, -0x1.bc33319402791p-2, -0x1.112704dd977b2p-2},
+       {0x1.5dab0af42edccp-1, -0x1.6637fa8aead11p-3, -0x1.6b1eba4e8c0edp-1, -0x1.660c759106542p-5},
+       {-0x1.ce530db1070ecp-1, 0x1.a506bd1c9c50dp-6, 0x1.b7368738e57dp-2, -0x1.719dd2c5f49e9p-5},
+       {0x1.f5a9389bb39e7p-4, 0x1.ee3cab8b9c3bfp-1, -0x1.d84c1e844c8b2p-3, -0x1.17cc3b9963bep-4},
+       {-0x1.09cb3ee6083abp-1, 0x1.794bcb821aa51p-7, 0x1.b5908db34161bp-1, -0x1.1d836d521f5b7p-3},
+       {0x1.ec8a008b23ea8p-1, -0x1.6b9077be41de2p-3, 0x1.a8fb3dc479f46p-3, -0x1.e143b1c0d0ff8p-6},
+       {-0x1.987a87e6e1e67p-3, 0x1.dd192b01fb1a5p-1, 0x1.366fdc2716d18p-2, -0x1.39182520bcbdp-6},
+       {-0x1.8cf9a1b3d66abp-1, -0x1.2e5209622bb8ap-2, -0x1.1dd76984df64p-1, -0x1.54b2e1beda51fp-4},
+       {0x1.f98809aaafeadp-5, 0x1.1847b12f4a907p-1, -0x1.ab4dda6d7c228p-1, -0x1.ebb20b330823dp-4},
+       {0x1.4718dd1971fb5p-4, 0x1.71e19c61da3f3p-4, 0x1.fc4427120aa2ap-1, -0x1.c18e9cd25be7fp-3},
+       {0x1.1b9592cf8d237p-5, 0x1.ebe10413d9c18p-2, 0x1.c0b69b19b9cb5p-1, -0x1.46f7f90d0e95ep-2},
+       {-0x1.2714263ec658ep-4, 0x1.0da7ab402cd36p-2, 0x1.ec8caf584c3a7p-1, -0x1.0b97866af8bfp-2},
+       {0x1.c80b56b90f0acp-1, 0x1.a0216312e1e1bp-2, -0x1.a1294bbb8b755p-3, -0x1.43e9c8ca0a26dp-8}});
+  const Polytope p = IntersectHalfSpaces(planes);
+  CheckStructure(p, planes);
+  CheckVerticesInside(p, planes);
+}
+
+TEST(Polytope, ToleranceRegressionVertexOnStraightEdge) {
+  const auto planes = FromRows(
+      {{0x1.5fab2e2594e5cp-3, -0x1.835cea14b7cecp-2, 0x1.d1ba3a3697407p-1, -0x1.8479c2541638p-8},
+       {-0x1.9b2690d0107fep-1, -0x1.596f229bf6cb3p-2, -0x1.f70ffe09fe356p-2, -0x1.c17db3de696abp-6},
+       {-0x1.a0505928513bfp-3, 0x1.c68f82145002bp-1, -0x1.a6c86eb8e59p-2, -0x1.43fd3bc4b0ee8p-3},
+       {0x1.6e69bf3c24141p-4, 0x1.e8a7030bc0cf5p-4, -0x1.fa469f4bf3829p-1, -0x1.2c0f3b6be6e6ap-8},
+       {-0x1.703c6146db34bp-1, -0x1.70ae3c818ffe4p-2, -0x1.303eb69061d7bp-1, -0x1.66e728471abcp-4},
+       {-0x1.277537dd57cc6p-3, 0x1.32e174ee8142p-1, -0x1.9320cc859205ep-1, -0x1.4aef904d17417p-6},
+       {-0x1.8d857b5434cep-2, -0x1.8b69740194f65p-1, -0x1.0176b944e0f83p-1, -0x1.c4bbf609e3cf4p-6},
+       {-0x1.ac2f5a4a6c697p-1, 0x1.9c48b26047d71p-2, -0x1.7d16a8281e534p-2, -0x1.4931a935e155dp-3},
+       {0x1.02d3ed26ce4abp-2, 0x1.161176cc23a5ap-3, -0x1.ea78ff58b5d2ep-1, -0x1.61062e854f8dfp-4},
+       {-0x1.e2c91c0317bdap-1, -0x1.3b83191cef994p-4, -0x1.4bb3d9f0806f2p-2, -0x1.7bed50752cc8p-4},
+       {0x1.df20b51db9c52p-3, -0x1.75b39e2b43eb1p-1, 0x1.48da02a554464p-1, -0x1.01134ddf21337p-8},
+       {-0x1.eefec4e8ae905p-2, -0x1.39c759e86aa65p-3, 0x1.b949ceaa94266p-1, -0x1.c04bb44517606p-4},
+       {-0x1.c40a3cad8b1fbp-1, -0x1.40b84962fa625p-4, -0x1.da1ddabf3b8e8p-2, -0x1.846b1ecd0ed58p-6},
+       {-0x1.4152878fe4aa5p-2, -0x1.98a78b518b2ccp-3, 0x1.db489f4c7bc23p-1, -0x1.66d72e48c79f8p-4},
+       {-0x1.0ffe025cf155cp-1, 0x1.a6a44b817ab6p-1, 0x1.86a76ba15becep-3, -0x1.f5960de0b929p-4},
+       {-0x1.4245e18ef9659p-3, 0x1.f2eba68a2e879p-2, -0x1.b7cc4e176a932p-1, -0x1.3f516c0957d8ep-10},
+       {0x1.797534e0b57d1p-4, 0x1.84c2eb57dc914p-4, -0x1.fb800634c3999p-1, -0x1.495d44500bda3p-8},
+       {0x1.c00748aab13b7p-2, 0x1.79d80eb5a02cfp-1, 0x1.070cec8d6c484p-1, -0x1.95f80a9b33215p-5},
+       {-0x1.3fd96aa4aed15p-1, 0x1.46588edf6786cp-5, 0x1.8f47a57d1383cp-1, -0x1.4d1354d290751p-8},
+       {-0x1.4b9543da60ep-1, -0x1.7a0dc035499a2p-2, -0x1.55453bf1747cep-1, -0x1.b125761eeed7cp-6},
+       {-0x1.e1ee18a9d22bp-1, -0x1.494521ccd28eep-2, 0x1.a6031bab98c1dp-4, -0x1.6582f184992c9p-5},
+       {-0x1.b40f6f34bbc11p-1, -0x1.4429b27ca086p-4, 0x1.093e0d039feabp-1, -0x1.d79a232b36589p-7},
+       {-0x1.2ec3cd43b9bfbp-4, -0x1.efcaafa2fa1fp-1, 0x1.e84c99d26a8d3p-3, -0x1.2f27d98261ba2p-6},
+       {0x1.3499529936e57p-3, -0x1.319ff10a4e62dp-1, 0x1.93777cea3d2e6p-1, -0x1.c0a1fd54b720ap-10},
+       {0x1.4da318cb76a1ep-3, -0x1.ca814f7da08fap-1, 0x1.a81341cd3a626p-2, -0x1.5d7f0738993dap-7},
+       {-0x1.92ebdf5cefd65p-1, 0x1.813c4f3643547p-2, -0x1.f4c9505d06752p-2, -0x1.a989219ffe9e2p-4},
+       {0x1.7a64ebc7766ecp-2, 0x1.57251259fda62p-3, 0x1.d3f679f0b357fp-1, -0x1.098eb97af61e1p-5},
+       {-0x1.8f84ed0d3ce3bp-3, -0x1.13c0368affc8cp-1, 0x1.a3ad87e7559afp-1, -0x1.e1d939352adc4p-8},
+       {0x1.751d0197d7476p-2, 0x1.b37c7a00360e3p-1, 0x1.844a55c0a4465p-2, -0x1.603e7361eb0ap-6},
+       {0x1.b9fb4f9f1a977p-2, 0x1.417cb0baecc0cp-4, -0x1.cc19a30a560bbp-1, -0x1.d2f5e57a0c67ap-5},
+       {0x1.77b9773826201p-3, 0x1.dc278ab57a248p-3, 0x1.e907c9b20c156p-1, -0x1.0d7591378ff5ep-4},
+       {-0x1.9904099650165p-1, 0x1.842af5a045998p-3, -0x1.244a06f97ec12p-1, -0x1.4f5c9e1fe341p-4},
+       {-0x1.7ddae70729991p-2, 0x1.d56ec27cf24fep-3, 0x1.cc58613fffff9p-1, -0x1.129d55c625f1dp-3},
+       {-0x1.6b5fa64f82defp-1, 0x1.53309e7545bcdp-2, -0x1.3e575c68b38f2p-1, -0x1.5347bbef538b5p-3},
+       {-0x1.bcc7611378ca2p-1, -0x1.fa9bdec7e1a19p-3, -0x1.b76e775d1c988p-2, -0x1.b1656525779e4p-6},
+       {-0x1.ae8e18b81265p-2, 0x1.e7ab4b387dfap-2, 0x1.8b6769faa4d1cp-1, -0x1.0069f594d1f81p-6},
+       {-0x1.220487b073dccp-1, 0x1.6faebca8b8fbcp-3, -0x1.9bce61faa69e3p-1,
+        -0x1.173f7b6bef89fp-5}});
+  const Polytope p = IntersectHalfSpaces(planes);
+  CheckStructure(p, planes);
+  CheckVerticesInside(p, planes);
+}
+
+// Planes through (or within 1e-12..1e-6 of) a few shared points, and near-copies of earlier
+// planes (some flipped into thin slabs): the classification tolerance decides many
+// incidences; the result must stay closed, consistently oriented and inside every plane.
+TEST(Polytope, NearCoincidentPlanesStress) {
+  std::mt19937 rng(31337);
+  std::normal_distribution<double> g(0.0, 1.0);
+  std::uniform_real_distribution<double> u(0.0, 1.0);
+  int non_empty = 0;
+  for (int trial = 0; trial < 4000; ++trial) {
+    std::vector<Vec3> anchors;
+    for (int i = 0; i < 3; ++i) anchors.emplace_back(0.15 * g(rng), 0.15 * g(rng), 0.15 * g(rng));
+    std::vector<HalfSpace> planes;
+    const int k = 4 + static_cast<int>(rng() % 40);
+    for (int i = 0; i < k; ++i) {
+      if (trial % 2 == 1 && !planes.empty() && u(rng) < 0.6) {
+        HalfSpace h = planes[rng() % planes.size()];
+        const double e = std::pow(10.0, -8 - 6 * u(rng));
+        h.normal += Vec3(g(rng), g(rng), g(rng)) * e;
+        h.offset += g(rng) * e;
+        if (u(rng) < 0.2) {
+          h.normal = -h.normal;
+          h.offset = -h.offset - 1e-3 * u(rng);
+        }
+        planes.push_back(h);
+        continue;
+      }
+      Vec3 n = Vec3(g(rng), g(rng), g(rng)).normalized();
+      double d;
+      if (trial % 2 == 0) {
+        const Vec3& a = anchors[rng() % 3];
+        d = -n.dot(a) + std::pow(10.0, -6 - 6 * u(rng)) * (u(rng) < 0.5 ? -1 : 1);
+        if (d > 0) {
+          n = -n;
+          d = -d;
+        }
+      } else {
+        d = -(0.05 + 0.9 * u(rng));
+      }
+      planes.push_back({n, d});
+    }
+    const Polytope p = IntersectHalfSpaces(planes);
+    if (p.empty()) continue;
+    ++non_empty;
+    CheckStructure(p, planes);
+    CheckVerticesInside(p, planes);
+    if (HasFailure()) {
+      ADD_FAILURE() << "trial " << trial;
+      return;
+    }
+  }
+  EXPECT_GT(non_empty, 2000);
 }
 
 // 200 random half-space sets against brute force.

@@ -50,7 +50,8 @@ struct PolytopeOptions {
 // The polytope {x in options.bounds : n_i . x + d_i <= 0 for all i}, built by clipping the
 // bounds box successively by each plane. Planes are normalised internally, so n need not be
 // unit length. Vertices closer than options.eps * scale (scale = the largest absolute
-// coordinate or extent of the bounds) to a plane count as lying on it: a plane that cuts off
+// coordinate of the bounds, 1 for the default box) to a plane count as lying on it: a plane
+// that cuts off
 // nothing beyond that tolerance (redundant, duplicate or near-parallel) adds no face, and a
 // plane that leaves nothing strictly inside empties the result. A plane with n == 0 keeps
 // everything if d <= 0 and nothing if d > 0. An input plane that coincides with a face of
