@@ -690,5 +690,58 @@ TEST_F(IoTest, MalformedObjThrowsParseErrorNamingFileLineAndProblem) {
   }
 }
 
+#ifdef DIMR_CLI
+// `dimr mesh info` / `dimr mesh convert` end to end.
+TEST_F(IoTest, MeshCliInfoAndConvert) {
+  TriangleMesh cube;
+  for (int i = 0; i < 8; ++i)
+    cube.vertices.emplace_back(2 * (i & 1), 2 * ((i >> 1) & 1), 2 * ((i >> 2) & 1));
+  const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
+                        {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
+  for (auto& t : f) cube.faces.emplace_back(t[0], t[1], t[2]);
+  cube.SetAttribute("label", ScalarType::kUInt16, {1, 2, 3, 4, 5, 6, 7, 40});
+  PlyWriteOptions ascii;
+  ascii.format = PlyFormat::kAscii;
+  WritePly(Path("cube.ply"), cube, ascii);
+  const std::string cli = DIMR_CLI;
+  ASSERT_EQ(
+      std::system((cli + " mesh info " + Path("cube.ply") + " > " + Path("info.txt")).c_str()), 0);
+  const std::string info = Slurp(Path("info.txt"));
+  for (const char* want :
+       {"format:         ply ascii", "vertices:       8", "faces:          12",
+        "attribute:      label (ushort), range [1, 40]", "surface area:   24", "signed volume:  8",
+        "bounds:         min (0, 0, 0) max (2, 2, 2)", "finite:         yes"}) {
+    EXPECT_NE(info.find(want), std::string::npos) << "missing '" << want << "' in\n" << info;
+  }
+  ASSERT_EQ(std::system((cli + " mesh convert " + Path("cube.ply") + " " + Path("be.ply") +
+                         " --binary-be > /dev/null")
+                            .c_str()),
+            0);
+  EXPECT_EQ(ReadPlyHeader(Path("be.ply")).format, PlyFormat::kBinaryBigEndian);
+  const TriangleMesh be = ReadPlyMesh(Path("be.ply"));
+  EXPECT_EQ(be.faces, cube.faces);
+  EXPECT_EQ(be.FindAttribute("label")->values, cube.FindAttribute("label")->values);
+  ASSERT_EQ(std::system((cli + " mesh convert " + Path("be.ply") + " " + Path("c.obj") +
+                         " --precision 3 > /dev/null")
+                            .c_str()),
+            0);
+  EXPECT_NE(Slurp(Path("c.obj")).find("v 2.000 2.000 2.000\n"), std::string::npos);
+  // Errors: nonzero exit, message naming the file and the problem.
+  Write("bad.ply", std::string(kAsciiHead) + "0 0 0\n1 0 0\n0 1 0\n3 0 1 7\n");
+  EXPECT_NE(
+      std::system(
+          (cli + " mesh info " + Path("bad.ply") + " > /dev/null 2> " + Path("err.txt")).c_str()),
+      0);
+  const std::string err = Slurp(Path("err.txt"));
+  EXPECT_NE(err.find("bad.ply:13: face 0: vertex index 7 out of range (3 vertices)"),
+            std::string::npos)
+      << err;
+  EXPECT_NE(std::system((cli + " mesh convert " + Path("cube.ply") + " " + Path("x.obj") +
+                         " --ascii > /dev/null 2>&1")
+                            .c_str()),
+            0);
+}
+#endif
+
 }  // namespace
 }  // namespace dimr::geometry
