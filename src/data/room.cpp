@@ -808,6 +808,7 @@ class Composer {
           disp.scale.x() = std::min(disp.scale.x(), 0.5 * room_.objects[ci].scale.x());
           PlaceOnTop(disp, ci, true);
         } else if (Budget()) {
+          disp.wall_mounted = true;
           PlaceAgainstWall(disp, best, best_s, rng_.Uniform(0.8, 1.2));
         }
       }
@@ -864,6 +865,7 @@ class Composer {
       bottom = rng_.Uniform(0.8, 1.2);
     }
     PlacedObject o = FromModel(m, SizeFor(m));
+    o.wall_mounted = true;
     if (bottom + o.scale.z() > room_.height - 0.1) return;
     PlaceAgainstWall(o, -1, -1, bottom);
   }

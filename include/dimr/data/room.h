@@ -49,6 +49,7 @@ struct PlacedObject {
   Material material;
   int support = -1;  // index of the object it stands on (-1: the floor or a wall)
   bool symmetric = false;
+  bool wall_mounted = false;  // hangs on a wall (pictures, wall TVs, radiators, curtains)
   std::shared_ptr<const CadModel> model;  // the library model (CAD and distractor objects)
 
   Eigen::Matrix3d Rotation() const;

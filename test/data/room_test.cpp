@@ -1,0 +1,201 @@
+// Room composer: shapes, object counts, placement rules, no interpenetration, determinism.
+#include "dimr/data/room.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "dimr/data/labels.h"
+#include "dimr/geometry/error.h"
+#include "dimr/geometry/oriented_box.h"
+
+namespace dimr::data {
+namespace {
+
+using geometry::Vec3;
+
+bool Movable(const PlacedObject& o) {
+  return o.role == ObjectRole::kFurniture || o.role == ObjectRole::kClutter;
+}
+
+// Distance from a 2-D point to the nearest outline edge.
+double DistanceToOutline(const Room& room, const Eigen::Vector2d& p) {
+  double best = 1e9;
+  for (std::size_t i = 0; i < room.outline.size(); ++i) {
+    const Eigen::Vector2d a = room.outline[i], b = room.outline[(i + 1) % room.outline.size()];
+    const double t = std::clamp((p - a).dot(b - a) / (b - a).squaredNorm(), 0.0, 1.0);
+    best = std::min(best, (a + t * (b - a) - p).norm());
+  }
+  return best;
+}
+
+class RoomTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    RoomConfig cfg;
+    for (std::uint64_t seed = 0; seed < 24; ++seed) rooms_.push_back(ComposeRoom(cfg, seed));
+  }
+  static std::vector<Room> rooms_;
+};
+std::vector<Room> RoomTest::rooms_;
+
+TEST_F(RoomTest, ShapesCountsAndShell) {
+  int l_rooms = 0, rect_rooms = 0;
+  for (const Room& room : rooms_) {
+    int movable = 0, walls = 0, floors = 0, doors = 0, ceilings = 0;
+    for (const auto& o : room.objects) {
+      movable += Movable(o);
+      walls += o.role == ObjectRole::kWall;
+      floors += o.role == ObjectRole::kFloor;
+      doors += o.role == ObjectRole::kDoor;
+      ceilings += o.role == ObjectRole::kCeiling;
+    }
+    EXPECT_GE(movable, 5);
+    EXPECT_LE(movable, 25);
+    EXPECT_EQ(walls, static_cast<int>(room.outline.size()));
+    EXPECT_EQ(floors, 1);
+    EXPECT_EQ(ceilings, 1);
+    EXPECT_GE(doors, 1);
+    if (room.shape == "L") {
+      ++l_rooms;
+      EXPECT_EQ(room.outline.size(), 6u);
+    } else {
+      ++rect_rooms;
+      EXPECT_EQ(room.outline.size(), 4u);
+    }
+    EXPECT_GT(room.FloorArea(), 9.0);
+    // Every wall's room-facing side (canonical +x face) lies on the outline.
+    for (const auto& o : room.objects) {
+      if (o.role != ObjectRole::kWall) continue;
+      const Vec3 face = o.translation + o.Rotation() * Vec3(o.scale.x() / 2, 0, 0);
+      EXPECT_LT(DistanceToOutline(room, face.head<2>()), 1e-9);
+      const Vec3 inward = o.translation + o.Rotation() * Vec3(o.scale.x() / 2 + 0.05, 0, 0);
+      EXPECT_TRUE(room.Inside(inward.head<2>()));
+      EXPECT_NEAR(o.scale.x(), 0.12, 1e-9);
+      EXPECT_NEAR(o.scale.z(), room.height, 1e-9);
+    }
+  }
+  EXPECT_GT(l_rooms, 2);
+  EXPECT_GT(rect_rooms, 2);
+}
+
+TEST_F(RoomTest, NoInterpenetrationAndInsideRoom) {
+  int pairs = 0;
+  for (const Room& room : rooms_) {
+    for (std::size_t i = 0; i < room.objects.size(); ++i) {
+      const auto& a = room.objects[i];
+      if (!Movable(a)) continue;
+      for (const auto& c : a.Box().Corners()) {
+        EXPECT_TRUE(room.Inside(c.head<2>())) << a.category;
+        EXPECT_GE(c.z(), -1e-6);
+        EXPECT_LE(c.z(), room.height);
+      }
+      for (std::size_t j = i + 1; j < room.objects.size(); ++j) {
+        const auto& b = room.objects[j];
+        if (!Movable(b)) continue;
+        ++pairs;
+        // Independent exact check (geometry's oriented-box IoU) of the composer's SAT test.
+        EXPECT_LT(geometry::BoxIoU(a.Box(), b.Box()), 1e-9) << a.category << " vs " << b.category;
+        EXPECT_FALSE(BoxesOverlap(a.Box(), b.Box()));
+      }
+    }
+  }
+  EXPECT_GT(pairs, 500);
+}
+
+TEST_F(RoomTest, PlacementRules) {
+  int backs = 0, on_top = 0, mounted = 0, chairs_facing = 0, chairs_near = 0;
+  for (const Room& room : rooms_) {
+    for (const auto& o : room.objects) {
+      if (!Movable(o)) continue;
+      if (o.cad_class >= 0) {
+        Vec3 lo, hi;
+        CadSizeRange(o.cad_class, &lo, &hi);
+        EXPECT_TRUE((o.scale.array() >= lo.array() - 1e-9).all() &&
+                    (o.scale.array() <= hi.array() + 1e-9).all())
+            << o.family << " size " << o.scale.transpose();
+      }
+      // Bookshelves and sofas stand with their back (-x face) against a wall.
+      if (o.cad_class == kCadBookshelf || o.cad_class == kCadSofa || o.cad_class == kCadBathtub) {
+        const Vec3 back = o.translation - o.Rotation() * Vec3(o.scale.x() / 2, 0, 0);
+        EXPECT_LT(DistanceToOutline(room, back.head<2>()), 0.05) << o.family;
+        const Vec3 front = o.translation + o.Rotation() * Vec3(o.scale.x() / 2 + 0.1, 0, 0);
+        EXPECT_TRUE(room.Inside(front.head<2>()));
+        ++backs;
+      }
+      if (o.support >= 0) {  // on top of another object, footprint on its top
+        const auto& s = room.objects[o.support];
+        const double bottom = o.translation.z() - o.scale.z() / 2;
+        EXPECT_NEAR(bottom, s.translation.z() + s.scale.z() / 2, 2e-3);
+        for (const auto& c : o.Box().Corners()) {
+          const Vec3 d = s.Rotation().transpose() * (c - s.translation);
+          EXPECT_LE(std::abs(d.x()), s.scale.x() / 2 + 1e-6);
+          EXPECT_LE(std::abs(d.y()), s.scale.y() / 2 + 1e-6);
+        }
+        ++on_top;
+      } else if (o.wall_mounted) {
+        const Vec3 back = o.translation - o.Rotation() * Vec3(o.scale.x() / 2, 0, 0);
+        EXPECT_LT(DistanceToOutline(room, back.head<2>()), 0.05) << o.category;
+        EXPECT_GT(o.translation.z() - o.scale.z() / 2, 0.0);
+        ++mounted;
+      } else {
+        EXPECT_NEAR(o.translation.z() - o.scale.z() / 2, 0.0, 1e-9) << o.category;
+      }
+    }
+    // Chairs next to a dining table face it.
+    for (const auto& c : room.objects) {
+      if (c.cad_class != kCadChair) continue;
+      for (const auto& t : room.objects) {
+        if (t.cad_class != kCadTable || t.support >= 0 || t.scale.z() < 0.6) continue;
+        const Vec3 d = t.translation - c.translation;
+        if (d.head<2>().norm() > 0.5 * t.scale.head<2>().norm() + 0.6) continue;
+        ++chairs_near;
+        const Vec3 fwd = c.Rotation().col(0);
+        chairs_facing += fwd.head<2>().dot(d.head<2>().normalized()) > 0.7;
+      }
+    }
+  }
+  EXPECT_GT(backs, 10);
+  EXPECT_GT(on_top, 10);
+  EXPECT_GT(mounted, 5);
+  EXPECT_GT(chairs_near, 10);
+  EXPECT_GE(chairs_facing, 0.8 * chairs_near);
+}
+
+TEST_F(RoomTest, CanonicalMeshesAndDeterminism) {
+  for (const auto& o : rooms_[0].objects) {
+    const geometry::AABB b = o.mesh.Bounds();
+    EXPECT_NEAR(b.min.minCoeff(), -0.5, 1e-9);
+    EXPECT_NEAR(b.max.maxCoeff(), 0.5, 1e-9);
+    const geometry::AABB w = o.WorldMesh().Bounds();
+    EXPECT_NEAR(w.Extent().z(), o.scale.z(), 1e-9);
+  }
+  const Room again = ComposeRoom(RoomConfig(), 0);
+  ASSERT_EQ(again.objects.size(), rooms_[0].objects.size());
+  for (std::size_t i = 0; i < again.objects.size(); ++i) {
+    EXPECT_EQ(again.objects[i].translation, rooms_[0].objects[i].translation);
+    EXPECT_EQ(again.objects[i].model_id, rooms_[0].objects[i].model_id);
+    EXPECT_EQ(again.objects[i].mesh.vertices, rooms_[0].objects[i].mesh.vertices);
+  }
+  const Room other = ComposeRoom(RoomConfig(), 1);
+  EXPECT_NE(other.objects[0].scale, rooms_[0].objects[0].scale);
+}
+
+TEST(RoomConfigTest, RejectsBadValues) {
+  RoomConfig c;
+  c.min_objects = 10;
+  c.max_objects = 5;
+  EXPECT_THROW(ComposeRoom(c, 0), InvalidArgument);
+  c = RoomConfig();
+  c.wall_thickness = 0;
+  try {
+    c.Validate();
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("wall_thickness"), std::string::npos);
+  }
+  EXPECT_THROW(CadSizeRange(8, nullptr, nullptr), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::data

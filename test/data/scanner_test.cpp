@@ -1,0 +1,189 @@
+// Virtual RGB-D scanner: trajectory, noise model, density modes, occlusion, determinism.
+#include "dimr/data/scanner.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numeric>
+
+#include "dimr/data/labels.h"
+#include "dimr/data/synthscan.h"
+#include "dimr/geometry/error.h"
+#include "dimr/geometry/mesh_distance.h"
+
+namespace dimr::data {
+namespace {
+
+using geometry::Vec3;
+
+ScannerConfig SmallScanner() {
+  ScannerConfig c;
+  c.width = 160;
+  c.height = 120;
+  c.frames = 24;
+  return c;
+}
+
+const Room& TestRoom() {
+  static const Room room = ComposeRoom(RoomConfig(), 7);
+  return room;
+}
+
+// RMS distance of the scan points to the placed mesh of the object each one belongs to.
+double RmsDistance(const Room& room, const ScanResult& scan, double* max_d) {
+  std::vector<std::vector<Vec3>> per(room.objects.size());
+  for (std::size_t k = 0; k < scan.points.size(); ++k)
+    per[scan.object[k]].push_back(scan.points[k]);
+  double sum = 0, mx = 0;
+  std::size_t n = 0;
+  for (std::size_t o = 0; o < per.size(); ++o) {
+    if (per[o].empty()) continue;
+    const geometry::MeshDistance md(room.objects[o].WorldMesh());
+    for (double d : md.Distances(per[o])) {
+      sum += d * d;
+      mx = std::max(mx, d);
+      ++n;
+    }
+  }
+  *max_d = mx;
+  return std::sqrt(sum / std::max<std::size_t>(n, 1));
+}
+
+TEST(ScannerTest, TrajectoryIsHandHeldLike) {
+  const Room& room = TestRoom();
+  ScannerConfig c;
+  const auto poses = MakeTrajectory(room, c, 3);
+  ASSERT_EQ(poses.size(), static_cast<std::size_t>(c.frames));
+  double path = 0;
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Vec3 p = poses[i].translation();
+    EXPECT_GE(p.z(), c.min_camera_height - 1e-9);
+    EXPECT_LE(p.z(), c.max_camera_height + 1e-9);
+    EXPECT_TRUE(room.Inside(p.head<2>()));
+    const Vec3 fwd = poses[i].linear().col(2);  // optical axis
+    const double tilt = std::asin(-fwd.z()) * 180 / M_PI;
+    EXPECT_GT(tilt, c.min_tilt_deg - 8);
+    EXPECT_LT(tilt, c.max_tilt_deg + 8);
+    EXPECT_NEAR(poses[i].linear().determinant(), 1.0, 1e-9);
+    if (i > 0) path += (p - poses[i - 1].translation()).norm();
+  }
+  // The loop goes once around the room.
+  EXPECT_GT(path, 1.5 * std::sqrt(room.FloorArea()));
+}
+
+TEST(ScannerTest, MeshDensityNoiseAndRawMode) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  const ScanResult mesh = ScanRoom(room, c, 11);
+  c.density = ScanDensity::kRaw;
+  c.raw_pixel_stride = 1;
+  const ScanResult raw = ScanRoom(room, c, 11);
+  ASSERT_GT(mesh.points.size(), 5000u);
+  EXPECT_EQ(mesh.rays, static_cast<std::size_t>(160 * 120) * mesh.poses.size());
+  EXPECT_EQ(mesh.returns, raw.returns);
+  EXPECT_LT(mesh.returns, mesh.rays);  // dropout, range limits, windows
+  // ScanNet-like: about one point per occupied 2 cm voxel; raw scans are many times denser.
+  const double mesh_ratio =
+      static_cast<double>(mesh.points.size()) / OccupiedVoxels(mesh.points, 0.02);
+  const double raw_ratio =
+      static_cast<double>(raw.points.size()) / OccupiedVoxels(raw.points, 0.02);
+  EXPECT_GT(mesh_ratio, 0.99);
+  EXPECT_LT(mesh_ratio, 1.3);
+  EXPECT_GT(raw_ratio, 2.0) << raw.points.size();
+  EXPECT_EQ(raw.points.size(), raw.returns);
+  // Raw points carry the per-frame depth noise, fused points much less.
+  double mesh_max = 0, raw_max = 0;
+  const double mesh_rms = RmsDistance(room, mesh, &mesh_max);
+  const double raw_rms = RmsDistance(room, raw, &raw_max);
+  EXPECT_GT(raw_rms, 0.003);
+  EXPECT_LT(raw_rms, 0.02);
+  EXPECT_LT(mesh_rms, 0.6 * raw_rms);
+  EXPECT_LT(mesh_max, 0.035);
+  // Axial noise is truncated at noise_clip sigma of the farthest range.
+  const double far_sigma = c.axial_noise_base + c.axial_noise_quad * std::pow(c.max_range - 0.4, 2);
+  // (along the ray: depth error / cos of the angle to the optical axis, <= 1.25 here)
+  EXPECT_LT(raw_max, 1.25 * c.noise_clip * far_sigma);
+  // The ceiling occludes but never appears; every point lies in the room volume.
+  for (std::size_t k = 0; k < raw.points.size(); ++k) {
+    EXPECT_NE(room.objects[raw.object[k]].role, ObjectRole::kCeiling);
+  }
+  for (const auto& p : mesh.points) {
+    EXPECT_LT(p.z(), room.height + 0.05);
+    EXPECT_GT(p.z(), -0.06);
+  }
+}
+
+TEST(ScannerTest, OcclusionMakesObjectsPartial) {
+  const Room& room = TestRoom();
+  const ScanResult scan = ScanRoom(room, SmallScanner(), 5);
+  int checked = 0;
+  for (std::size_t o = 0; o < room.objects.size(); ++o) {
+    const PlacedObject& obj = room.objects[o];
+    if (obj.role != ObjectRole::kFurniture && obj.role != ObjectRole::kFloor) continue;
+    // Undersides are never seen: samples of the bottom face are unobserved.
+    const Vec3 bottom = obj.translation - Vec3(0, 0, obj.scale.z() / 2);
+    if (obj.role == ObjectRole::kFloor) {
+      EXPECT_FALSE(ObservedNear(scan, static_cast<int>(o), bottom));
+      const Vec3 top = obj.translation + Vec3(0.3, 0.2, obj.scale.z() / 2);
+      (void)top;
+    }
+    // Backs against walls are never seen.
+    if (obj.cad_class == kCadBookshelf || obj.cad_class == kCadSofa) {
+      for (double z = -0.4; z <= 0.4; z += 0.1) {
+        const Vec3 back =
+            obj.translation + obj.Rotation() * Vec3(-obj.scale.x() / 2, 0, z * obj.scale.z());
+        EXPECT_FALSE(ObservedNear(scan, static_cast<int>(o), back)) << obj.family;
+      }
+      ++checked;
+    }
+  }
+  EXPECT_GT(scan.observed_cells.size(), 10000u);
+  (void)checked;
+}
+
+TEST(ScannerTest, DeterministicAcrossThreadCounts) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 8;
+  c.threads = 1;
+  const ScanResult a = ScanRoom(room, c, 99);
+  c.threads = 3;
+  const ScanResult b = ScanRoom(room, c, 99);
+  EXPECT_EQ(a.points, b.points);
+  EXPECT_EQ(a.colors, b.colors);
+  EXPECT_EQ(a.object, b.object);
+  const ScanResult d = ScanRoom(room, c, 100);
+  EXPECT_NE(a.points, d.points);
+}
+
+TEST(ScannerTest, DriftMisregistersFrames) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 16;
+  const ScanResult clean = ScanRoom(room, c, 4);
+  c.drift_translation = 0.004;
+  c.drift_rotation_deg = 0.15;
+  c.keep_frames = true;
+  const ScanResult drift = ScanRoom(room, c, 4);
+  double clean_max = 0, drift_max = 0;
+  const double clean_rms = RmsDistance(room, clean, &clean_max);
+  const double drift_rms = RmsDistance(room, drift, &drift_max);
+  EXPECT_GT(drift_rms, 1.5 * clean_rms);
+  ASSERT_EQ(drift.frames.size(), drift.poses.size());
+  // Estimated poses drift away from the true ones.
+  const auto& last = drift.frames.back();
+  EXPECT_GT((last.pose.translation() - last.true_pose.translation()).norm(), 0.003);
+  EXPECT_FALSE(last.points.empty());
+  for (const auto& p : last.points) EXPECT_GT(p.z(), c.min_range - 0.1);  // optical frame
+}
+
+TEST(ScannerTest, RejectsBadConfig) {
+  ScannerConfig c;
+  c.max_range = 0.1;
+  EXPECT_THROW(ScanRoom(TestRoom(), c, 0), InvalidArgument);
+  EXPECT_THROW(ScanDensityFromName("dense"), InvalidArgument);
+  EXPECT_EQ(ScanDensityFromName("raw"), ScanDensity::kRaw);
+}
+
+}  // namespace
+}  // namespace dimr::data

@@ -1,0 +1,202 @@
+// SynthScan scenes: ground truth against the placed meshes, labels, alignments, determinism.
+#include "dimr/data/synthscan.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <set>
+
+#include "dimr/data/labels.h"
+#include "dimr/data/scan2cad_io.h"
+#include "dimr/data/scannet_io.h"
+#include "dimr/data/shapenet_io.h"
+#include "dimr/geometry/error.h"
+#include "dimr/geometry/mesh_distance.h"
+
+namespace dimr::data {
+namespace {
+
+namespace fs = std::filesystem;
+using geometry::Vec3;
+
+SynthConfig TestConfig() {
+  SynthConfig c;
+  c.scanner.frames = 30;
+  return c;
+}
+
+const GeneratedScene& Scene() {
+  static const GeneratedScene g =
+      GenerateScene(TestConfig(), SceneSeed(5, "train", 3), "scene0003_00");
+  return g;
+}
+
+std::string Slurp(const fs::path& p) {
+  std::ifstream f(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(f), {});
+}
+
+TEST(SynthScanTest, PointsLieOnTheirPlacedMeshes) {
+  const GeneratedScene& g = Scene();
+  const SynthScene& s = g.scene;
+  ASSERT_GT(s.points.size(), 10000u);
+  std::size_t total = 0, over = 0;
+  for (const auto& inst : s.instances) {
+    const PlacedObject& obj = g.room.objects.at(g.object_of_instance.at(inst.id));
+    std::vector<Vec3> pts;
+    for (std::size_t k = 0; k < s.points.size(); ++k) {
+      if (s.instance[k] == inst.id) pts.push_back(s.points[k]);
+    }
+    ASSERT_EQ(static_cast<int>(pts.size()), inst.num_points);
+    const geometry::MeshDistance md(obj.WorldMesh());
+    for (double d : md.Distances(pts)) {
+      EXPECT_LT(d, 0.045) << inst.category;  // hard bound: noise clip + voxel averaging
+      over += d > 0.03;
+      ++total;
+    }
+  }
+  // Noise bound: fused depth noise keeps practically every point within 3 cm.
+  EXPECT_LT(static_cast<double>(over), 1e-3 * total);
+}
+
+TEST(SynthScanTest, LabelsAndInstancesAreConsistent) {
+  const GeneratedScene& g = Scene();
+  const SynthScene& s = g.scene;
+  EXPECT_NO_THROW(s.Validate());
+  std::set<int> walls, floors;
+  for (std::size_t i = 0; i < s.instances.size(); ++i) {
+    const auto& inst = s.instances[i];
+    EXPECT_EQ(inst.id, static_cast<int>(i) + 1);  // contiguous, 1-based
+    EXPECT_GE(inst.num_points, TestConfig().min_instance_points);
+    EXPECT_GE(inst.visible_fraction, 0.0);
+    EXPECT_LE(inst.visible_fraction, 1.0);
+    if (inst.category == "wall") walls.insert(inst.id);
+    if (inst.category == "floor") floors.insert(inst.id);
+    if (inst.cad_class >= 0) {
+      EXPECT_EQ(inst.synset, CadSynsets()[inst.cad_class]);
+      EXPECT_EQ(inst.model_id.size(), 32u);
+    }
+  }
+  EXPECT_GE(walls.size(), 3u);
+  EXPECT_EQ(floors.size(), 1u);
+  int clutter_points = 0;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    const SynthInstance* inst = s.FindInstance(s.instance[k]);
+    if (!inst) {
+      EXPECT_EQ(s.semantic[k], kSemanticIgnore);
+      continue;
+    }
+    if (walls.count(inst->id)) {
+      EXPECT_EQ(s.semantic[k], kWall);
+    }
+    if (floors.count(inst->id)) {
+      EXPECT_EQ(s.semantic[k], kFloor);
+    }
+    if (inst->rfs_class < 0) {
+      EXPECT_EQ(s.semantic[k], kSemanticIgnore);
+      ++clutter_points;
+    } else {
+      EXPECT_EQ(s.semantic[k], inst->rfs_class);
+    }
+  }
+  // Segments never span two instances.
+  std::map<int, int> owner;
+  for (std::size_t k = 0; k < s.points.size(); ++k) {
+    auto it = owner.emplace(s.segment[k], s.instance[k]).first;
+    EXPECT_EQ(it->second, s.instance[k]);
+  }
+  // The floor hides its underside and walls their outside: partial, like real scans.
+  for (const auto& inst : s.instances) {
+    if (inst.category == "floor" || inst.category == "wall") {
+      EXPECT_LT(inst.visible_fraction, 0.55);
+    }
+  }
+}
+
+TEST(SynthScanTest, AlignmentMapsTheShapeNetModelOntoThePlacedMesh) {
+  const GeneratedScene& g = Scene();
+  int cad = 0;
+  for (const auto& inst : g.scene.instances) {
+    const PlacedObject& obj = g.room.objects.at(g.object_of_instance.at(inst.id));
+    const geometry::TriangleMesh world = obj.WorldMesh();
+    Eigen::Matrix3d to_model = Eigen::Matrix3d::Identity();
+    if (inst.cad_class >= 0) {
+      ++cad;
+      to_model = CanonicalToShapeNet(obj.model->nominal_size);
+    }
+    for (std::size_t v = 0; v < world.vertices.size(); v += 7) {
+      const Vec3 q = to_model * obj.mesh.vertices[v];  // model_normalized / canonical vertex
+      const Vec3 p = inst.translation + inst.rotation * inst.scale.cwiseProduct(q);
+      EXPECT_LT((p - world.vertices[v]).norm(), 1e-9);
+    }
+    EXPECT_NEAR(inst.rotation.norm(), 1.0, 1e-12);
+    EXPECT_EQ(inst.box.center, obj.translation);
+    EXPECT_EQ(inst.box.size, obj.scale);
+    EXPECT_EQ(inst.box.heading, obj.yaw);
+  }
+  EXPECT_GE(cad, 2);
+  // Scan2CAD: bbox * scale = metric half size in ShapeNet axes (-y, z, -x).
+  const Scan2CadScene s2c = ToScan2Cad(g.scene);
+  EXPECT_EQ(static_cast<int>(s2c.aligned_models.size()), cad);
+  for (const auto& m : s2c.aligned_models) {
+    const SynthInstance* inst = g.scene.FindInstance(m.id_instance);
+    ASSERT_NE(inst, nullptr);
+    const Vec3 half = m.bbox.cwiseProduct(m.scale);
+    EXPECT_NEAR(half.x(), inst->box.size.y() / 2, 1e-9);
+    EXPECT_NEAR(half.y(), inst->box.size.z() / 2, 1e-9);
+    EXPECT_NEAR(half.z(), inst->box.size.x() / 2, 1e-9);
+  }
+}
+
+TEST(SynthScanTest, SameSeedSameBytes) {
+  const GeneratedScene again =
+      GenerateScene(TestConfig(), SceneSeed(5, "train", 3), "scene0003_00");
+  EXPECT_TRUE(again.scene == Scene().scene);
+  const fs::path root = fs::temp_directory_path() / ("synth_det_" + std::to_string(::getpid()));
+  WriteScanNetScene((root / "a").string(), Scene().scene);
+  WriteScanNetScene((root / "b").string(), again.scene);
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(root / "a" / "scene0003_00")) {
+    const fs::path other = root / "b" / "scene0003_00" / e.path().filename();
+    EXPECT_EQ(Slurp(e.path()), Slurp(other)) << e.path();
+    ++files;
+  }
+  EXPECT_EQ(files, 6);
+  fs::remove_all(root);
+  // Scene seeds depend on (seed, split, index) only; splits and indices differ.
+  EXPECT_EQ(SceneSeed(5, "train", 3), SceneSeed(5, "train", 3));
+  EXPECT_NE(SceneSeed(5, "train", 3), SceneSeed(5, "val", 3));
+  EXPECT_NE(SceneSeed(5, "train", 3), SceneSeed(5, "train", 4));
+  EXPECT_EQ(SceneName("val", 2), "scene5002_00");
+  EXPECT_THROW(SceneName("dev", 0), InvalidArgument);
+}
+
+TEST(SynthScanTest, IndexShapeNetTreeAndSummary) {
+  const GeneratedScene& g = Scene();
+  const fs::path root = fs::temp_directory_path() / ("synth_idx_" + std::to_string(::getpid()));
+  fs::create_directories(root);
+  std::vector<CadModel> models;
+  for (const auto& m : g.cad_models) models.push_back(*m);
+  ASSERT_FALSE(models.empty());
+  WriteShapeNetTree((root / "shapenet").string(), models);
+  EXPECT_TRUE(
+      fs::exists(root / "shapenet" / ShapeNetRelativePath(models[0].synset, models[0].model_id)));
+  SceneSummary sum = Summarize(g);
+  EXPECT_EQ(sum.num_points, g.scene.points.size());
+  EXPECT_EQ(sum.objects.size(), g.scene.instances.size());
+  WriteSynthIndex((root / "synthscan.yaml").string(), TestConfig(), 5, "train", 0, 1, {sum});
+  const std::string yaml = Slurp(root / "synthscan.yaml");
+  EXPECT_NE(yaml.find("name: scene0003_00"), std::string::npos);
+  EXPECT_NE(yaml.find("points: " + std::to_string(sum.num_points)), std::string::npos);
+  const std::string report = RealismReport({sum});
+  EXPECT_NE(report.find("| wall |"), std::string::npos);
+  EXPECT_THROW(
+      WriteSynthIndex("/proc/nonexistent/synthscan.yaml", TestConfig(), 5, "train", 0, 1, {sum}),
+      Error);
+  fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace dimr::data
