@@ -58,6 +58,43 @@ const ArtLut& Lut() {
   return lut;
 }
 
+// The same basis factorised per node: 3 radial values and 12 (cos p.theta, sin p.theta) pairs
+// (216 instead of 576 bytes per node); the projection multiplies (w * radial) * angular, a
+// regrouping of the reference's w * (radial * angular) that differs by rounding only.
+struct ArtFactors {
+  std::vector<double> rad;  // (y * kLut + x) * 3 + r
+  std::vector<double> ang;  // ((y * kLut + x) * 12 + p) * 2 + {0 cos, 1 sin}
+  ArtFactors()
+      : rad(static_cast<std::size_t>(kLut) * kLut * 3, 0.0),
+        ang(static_cast<std::size_t>(kLut) * kLut * 24, 0.0) {
+    const double kPi = 3.141592653;
+    for (int y = 0; y <= 100; ++y) {
+      for (int x = 0; x <= 100; ++x) {
+        const double dx = x - 50, dy = y - 50;
+        const double rho = std::hypot(dx, dy);
+        if (!(rho < 50.0)) continue;
+        const double theta = std::atan2(dy, dx);
+        const std::size_t node = static_cast<std::size_t>(y) * kLut + x;
+        for (int r = 0; r < 3; ++r) rad[node * 3 + r] = std::cos(kPi * r * rho / 50.0);
+        for (int p = 0; p < 12; ++p) {
+          ang[(node * 12 + p) * 2] = std::cos(p * theta);
+          ang[(node * 12 + p) * 2 + 1] = std::sin(p * theta);
+        }
+      }
+    }
+  }
+};
+const ArtFactors& Factors() {
+  static const ArtFactors f;
+  return f;
+}
+
+// Floor / ceiling of a / b for b > 0.
+inline std::int64_t FloorDiv(std::int64_t a, std::int64_t b) {
+  return a >= 0 ? a / b : -((-a + b - 1) / b);
+}
+inline std::int64_t CeilDiv(std::int64_t a, std::int64_t b) { return -FloorDiv(-a, b); }
+
 std::uint8_t Quantize(double v, double scale) {
   const double q = v * scale;
   if (!(q >= 0.0)) return 0;
@@ -167,19 +204,25 @@ Image RenderSilhouette(const std::vector<Vec3>& vertices, const std::vector<Vec3
       const bool top_left = ey[e] < 0 || (ey[e] == 0 && ex[e] < 0);
       bias[e] = top_left ? 0 : -1;  // E + bias >= 0  <=>  E > 0 (or E >= 0 for top-left)
     }
+    // Per row, each edge bounds x from one side: E_k(x) = A_k + B_k * x >= 0 with
+    // B_k = -256 * ey_k; the covered pixels form one span, filled at once.
     for (int y = y0; y <= y1; ++y) {
       const std::int64_t pyc = static_cast<std::int64_t>(y) * 256 + 128;
-      const std::int64_t pxc0 = static_cast<std::int64_t>(x0) * 256 + 128;
-      std::int64_t e[3];
-      for (int k = 0; k < 3; ++k) {
-        e[k] = ex[k] * (pyc - oy[k]) - ey[k] * (pxc0 - ox[k]) + bias[k];
+      std::int64_t lo = x0, hi = x1;
+      for (int k = 0; k < 3 && lo <= hi; ++k) {
+        const std::int64_t a = ex[k] * (pyc - oy[k]) - ey[k] * (128 - ox[k]) + bias[k];
+        const std::int64_t b = -256 * ey[k];
+        if (b == 0) {
+          if (a < 0) hi = lo - 1;
+        } else if (b > 0) {
+          lo = std::max(lo, CeilDiv(-a, b));
+        } else {
+          hi = std::min(hi, FloorDiv(a, -b));
+        }
       }
-      std::uint8_t* row = &img[static_cast<std::size_t>(y) * W];
-      for (int x = x0; x <= x1; ++x) {
-        if ((e[0] | e[1] | e[2]) >= 0) row[x] = 0;
-        e[0] -= ey[0] * 256;
-        e[1] -= ey[1] * 256;
-        e[2] -= ey[2] * 256;
+      if (lo <= hi) {
+        std::memset(&img[static_cast<std::size_t>(y) * W + lo], 0,
+                    static_cast<std::size_t>(hi - lo + 1));
       }
     }
   }
@@ -193,18 +236,16 @@ ViewCentre ComputeCentre(const Image& img) {
   int minx = W, maxx = -1, miny = W, maxy = -1, n = 0;
   for (int y = 0; y < W; ++y) {
     const std::uint8_t* row = &img[static_cast<std::size_t>(y) * W];
-    int rmin = W, rmax = -1, rn = 0;
-    for (int x = 0; x < W; ++x) {
-      if (row[x] < 255) {
-        ++rn;
-        if (rmin == W) rmin = x;
-        rmax = x;
-      }
-    }
+    int rn = 0;
+    for (int x = 0; x < W; ++x) rn += row[x] < 255;  // branch-free, vectorised
     if (rn == 0) continue;
     n += rn;
-    minx = std::min(minx, rmin);
-    maxx = std::max(maxx, rmax);
+    int a = 0;
+    while (row[a] == 255) ++a;
+    int b = W - 1;
+    while (row[b] == 255) --b;
+    minx = std::min(minx, a);
+    maxx = std::max(maxx, b);
     miny = std::min(miny, y);
     maxy = std::max(maxy, y);
   }
@@ -367,14 +408,23 @@ void ArtBytes(const Image& img, const ViewCentre& c, double r, std::uint8_t* out
       nmaxy = std::max(nmaxy, iy + 1);
     }
   }
-  const double* lut = Lut().v.data();
+  const ArtFactors& fac = Factors();
   double acc[kCoef * 2] = {0};
   for (int y = nminy; y <= nmaxy; ++y) {
     for (int x = nminx; x <= nmaxx; ++x) {
-      const double wt = w[static_cast<std::size_t>(y) * kLut + x];
+      const std::size_t node = static_cast<std::size_t>(y) * kLut + x;
+      const double wt = w[node];
       if (wt == 0.0) continue;
-      const double* v = lut + (static_cast<std::size_t>(y) * kLut + x) * kCoef * 2;
-      for (int k = 0; k < kCoef * 2; ++k) acc[k] += wt * v[k];
+      const double* rad = &fac.rad[node * 3];
+      const double* ang = &fac.ang[node * 24];
+      const double wr[3] = {wt * rad[0], wt * rad[1], wt * rad[2]};
+      for (int p = 0; p < 12; ++p) {
+        const double cp = ang[2 * p], sp = ang[2 * p + 1];
+        for (int r = 0; r < 3; ++r) {
+          acc[(p * 3 + r) * 2] += wr[r] * cp;
+          acc[(p * 3 + r) * 2 + 1] += wr[r] * sp;
+        }
+      }
     }
   }
   const double n = c.count;
@@ -587,12 +637,21 @@ void FourierBytes(const Image& img, const ViewCentre& c, std::uint8_t* out10) {
   }
   double mag[kFd + 1];
   const double kTwoPi = 2.0 * M_PI;
+  thread_local std::vector<double> cs, sn;
+  cs.resize(n);
+  sn.resize(n);
+  for (int m = 0; m < n; ++m) {
+    const double ang = kTwoPi * static_cast<double>(m) / n;
+    cs[m] = std::cos(ang);
+    sn[m] = std::sin(ang);
+  }
   for (int k = 0; k <= kFd; ++k) {
     double re = 0, im = 0;
+    long m = 0;
     for (int i = 0; i < n; ++i) {
-      const double ang = kTwoPi * static_cast<double>((static_cast<long>(k) * i) % n) / n;
-      re += d[i] * std::cos(ang);
-      im -= d[i] * std::sin(ang);
+      re += d[i] * cs[m];
+      im -= d[i] * sn[m];
+      m = (m + k) % n;
     }
     mag[k] = std::hypot(re, im);
   }

@@ -66,7 +66,8 @@ ViewCentre ComputeCentre(const Image& img);
 std::uint8_t EccentricityByte(const Image& img, const ViewCentre& c);
 std::uint8_t CircularityByte(const Image& img);
 // 35 ART bytes for scale r = 50 / R_k. Pixels are splatted onto the 101x101 LUT nodes with
-// their bilinear weights, then projected on the basis (same sum, regrouped; 20x faster).
+// their bilinear weights, then projected on the basis once per node (the same sum regrouped,
+// equal up to rounding; many times faster than the per-pixel loop).
 void ArtBytes(const Image& img, const ViewCentre& c, double r, std::uint8_t* out35);
 // The reference's loop order (per pixel, per coefficient bilinear lookup); for tests.
 void ArtBytesDirect(const Image& img, const ViewCentre& c, double r, std::uint8_t* out35);
