@@ -4,6 +4,7 @@
 
 #include <ATen/Parallel.h>
 #include <sys/resource.h>
+#include <time.h>
 
 #include <algorithm>
 #include <chrono>
@@ -164,6 +165,12 @@ double PeakRssMb() {
 }
 
 using Clock = std::chrono::steady_clock;
+
+double CpuMs() {
+  timespec ts;
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return ts.tv_sec * 1e3 + ts.tv_nsec * 1e-6;
+}
 double Ms(Clock::time_point a, Clock::time_point b) {
   return std::chrono::duration<double, std::milli>(b - a).count();
 }
@@ -283,21 +290,26 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       return std::make_pair(point_feats, y);
     };
     const std::vector<SparseBackend> backends =
-        opt.torch_ops ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps}
-                      : std::vector<SparseBackend>{SparseBackend::kFused};
+        opt.unet_torch_ops
+            ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps}
+            : std::vector<SparseBackend>{SparseBackend::kFused};
     for (SparseBackend be : backends) {
       SetSparseBackend(be);
       const std::string bname = be == SparseBackend::kFused ? "fused" : "torch-ops";
       const int reps = be == SparseBackend::kFused ? opt.repeats : 1;
       net->eval();
-      std::vector<double> fw;
+      std::vector<double> fw, cpu;
       double flops = 0;
       for (int r = 0; r <= reps; ++r) {
         at::NoGradGuard ng;
+        const double c0 = CpuMs();
         auto t0 = Clock::now();
         auto out = run_forward();
         auto t1 = Clock::now();
-        if (r > 0 || reps == 1) fw.push_back(Ms(t0, t1));
+        if (r > 0 || reps == 1) {
+          fw.push_back(Ms(t0, t1));
+          cpu.push_back(CpuMs() - c0);
+        }
         if (r == 0) flops = UNetForwardFlops(cfg, *out.second.context());
         if (reps == 1) break;
       }
@@ -308,13 +320,15 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       row.sites = rep.room_voxels;
       row.forward_ms = Median(fw);
       row.total_ms = row.forward_ms;
+      row.cpu_ms = Median(cpu);
       row.gflops = flops / (row.total_ms * 1e6);
       rep.rows.push_back(row);
       if (opt.unet_backward && be == SparseBackend::kFused) {
         net->train();
-        std::vector<double> f2, b2;
+        std::vector<double> f2, b2, cpu2;
         for (int r = 0; r <= opt.repeats; ++r) {
           net->zero_grad();
+          const double c0 = CpuMs();
           auto t0 = Clock::now();
           auto out = run_forward();
           at::Tensor loss = out.first.square().mean();
@@ -324,6 +338,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
           if (r > 0) {
             f2.push_back(Ms(t0, t1));
             b2.push_back(Ms(t1, t2));
+            cpu2.push_back(CpuMs() - c0);
           }
         }
         SparseBenchRow tr;
@@ -334,6 +349,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
         tr.forward_ms = Median(f2);
         tr.backward_ms = Median(b2);
         tr.total_ms = tr.forward_ms + tr.backward_ms;
+        tr.cpu_ms = Median(cpu2);
         tr.gflops = 3.0 * flops / (tr.total_ms * 1e6);
         rep.rows.push_back(tr);
         rep.peak_rss_mb = PeakRssMb();
@@ -359,18 +375,23 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
                       : std::vector<SparseBackend>{SparseBackend::kFused};
     for (SparseBackend be : backends) {
       SetSparseBackend(be);
-      std::vector<double> fw, bw;
-      for (int r = 0; r <= opt.repeats; ++r) {
+      // The torch-ops path is slow: one untimed warm-up and repeats for fused, one run else.
+      const int warm = be == SparseBackend::kFused ? 1 : 0;
+      const int runs = be == SparseBackend::kFused ? opt.repeats : 1;
+      std::vector<double> fw, bw, cpu;
+      for (int r = 0; r < warm + runs; ++r) {
         at::Tensor x = x0.clone().set_requires_grad(true);
         at::Tensor w = w0.clone().set_requires_grad(true);
+        const double c0 = CpuMs();
         auto t0 = Clock::now();
         at::Tensor y = SubMConv3d(base.WithFeatures(x), w).features();
         auto t1 = Clock::now();
         y.backward(g);
         auto t2 = Clock::now();
-        if (r > 0) {
+        if (r >= warm) {
           fw.push_back(Ms(t0, t1));
           bw.push_back(Ms(t1, t2));
+          cpu.push_back(CpuMs() - c0);
         }
       }
       SparseBenchRow row;
@@ -382,6 +403,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       row.forward_ms = Median(fw);
       row.backward_ms = Median(bw);
       row.total_ms = row.forward_ms + row.backward_ms;
+      row.cpu_ms = Median(cpu);
       row.gflops = 3.0 * 2.0 * pairs * c * c / (row.total_ms * 1e6);
       rep.rows.push_back(row);
     }

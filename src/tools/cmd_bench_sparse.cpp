@@ -25,20 +25,20 @@ void PrintReport(const dimr::nn::SparseBenchReport& r) {
               static_cast<long long>(r.room_points), static_cast<long long>(r.room_voxels),
               r.rulebook_ms);
   std::printf("threads (at::get_num_threads): %d\n", r.threads);
-  std::printf("%-54s %-9s %8s %10s %10s %10s %8s\n", "layer", "backend", "pairs", "fwd ms",
-              "bwd ms", "total ms", "GFLOP/s");
+  std::printf("%-54s %-9s %8s %10s %10s %10s %8s %10s\n", "layer", "backend", "pairs", "fwd ms",
+              "bwd ms", "total ms", "GFLOP/s", "CPU ms");
   for (const auto& row : r.rows) {
-    std::printf("%-54s %-9s %8lld %10.1f %10.1f %10.1f %8.1f\n", row.layer.c_str(),
+    std::printf("%-54s %-9s %8lld %10.1f %10.1f %10.1f %8.1f %10.1f\n", row.layer.c_str(),
                 row.backend.c_str(), static_cast<long long>(row.pairs), row.forward_ms,
-                row.backward_ms, row.total_ms, row.gflops);
+                row.backward_ms, row.total_ms, row.gflops, row.cpu_ms);
   }
   // Fused / torch-ops ratios of the conv rows.
   for (const auto& a : r.rows) {
     if (a.backend != "fused") continue;
     for (const auto& b : r.rows) {
-      if (b.backend == "torch-ops" && b.layer == a.layer && a.total_ms > 0) {
-        std::printf("speed-up fused vs torch-ops, %s: %.1fx\n", a.layer.c_str(),
-                    b.total_ms / a.total_ms);
+      if (b.backend == "torch-ops" && b.layer == a.layer && a.total_ms > 0 && a.cpu_ms > 0) {
+        std::printf("speed-up fused vs torch-ops, %s: %.1fx wall, %.1fx CPU time\n",
+                    a.layer.c_str(), b.total_ms / a.total_ms, b.cpu_ms / a.cpu_ms);
       }
     }
   }
@@ -65,7 +65,8 @@ void WriteJson(const dimr::nn::SparseBenchReport& r, const std::string& path) {
                          {"forward_ms", row.forward_ms},
                          {"backward_ms", row.backward_ms},
                          {"total_ms", row.total_ms},
-                         {"gflops", row.gflops}});
+                         {"gflops", row.gflops},
+                         {"cpu_ms", row.cpu_ms}});
   }
   std::ofstream f(path);
   if (!f) throw std::runtime_error("bench sparse: cannot write " + path);
@@ -86,6 +87,8 @@ void Setup(CLI::App& app) {
   app.add_option("--seed", args->opt.seed, "Room generator seed");
   app.add_flag("--no-torch-ops", args->no_torch_ops, "Skip the torch-ops rows");
   app.add_flag("--no-unet", args->no_unet, "Skip the stage-1 U-Net rows");
+  app.add_flag("--unet-torch-ops", args->opt.unet_torch_ops,
+               "Also time the U-Net forward on the torch-ops path (slow)");
   app.add_option("--json", args->json, "Also write the results as JSON to this file");
   app.callback([args]() {
     args->opt.torch_ops = !args->no_torch_ops;

@@ -31,6 +31,7 @@ struct SparseBenchOptions {
   bool torch_ops = true;                        // also time the torch-ops path
   bool unet = true;                             // time the stage-1 U-Net
   bool unet_backward = true;                    // ... and its forward + backward
+  bool unet_torch_ops = false;  // also time the U-Net forward on the torch-ops path (slow)
   uint64_t seed = 1;
 };
 
@@ -44,6 +45,9 @@ struct SparseBenchRow {
   double backward_ms = 0;  // median, 0 if not measured
   double total_ms = 0;
   double gflops = 0;  // (forward + backward) useful GEMM FLOPs / total time
+  // Process CPU time (all threads) of forward + backward: on a machine shared with other
+  // processes the wall times above inflate, CPU time much less so.
+  double cpu_ms = 0;
 };
 
 struct SparseBenchReport {
