@@ -312,6 +312,7 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& c, std::uint64_
                      const std::string& split, int shard, int num_shards,
                      const std::vector<SceneSummary>& scenes) {
   YAML::Emitter y;
+  y.SetDoublePrecision(10);
   y << YAML::BeginMap;
   y << YAML::Key << "synthscan" << YAML::Value << YAML::BeginMap;
   y << YAML::Key << "version" << YAML::Value << 1;
@@ -410,6 +411,49 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& c, std::uint64_
   if (!f) throw Error("cannot write the SynthScan index '" + path + "'");
   f << y.c_str() << "\n";
   if (!f) throw Error("error writing the SynthScan index '" + path + "'");
+}
+
+void RenderTopDown(const SynthScene& scene, const std::string& ppm_path, double mpp,
+                   bool by_instance) {
+  if (!(mpp > 0)) throw InvalidArgument("RenderTopDown: metres_per_pixel must be > 0");
+  geometry::AABB b;
+  for (const auto& p : scene.points) b.Extend(p);
+  if (b.Empty()) throw InvalidArgument("RenderTopDown: scene " + scene.name + " has no points");
+  const int margin = 10;
+  const int w = static_cast<int>(b.Extent().x() / mpp) + 2 * margin;
+  const int h = static_cast<int>(b.Extent().y() / mpp) + 2 * margin;
+  if (w > 8000 || h > 8000) throw InvalidArgument("RenderTopDown: image too large");
+  std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h * 3, 255);
+  std::vector<float> zbuf(static_cast<std::size_t>(w) * h, -1e9f);
+  const int splat = std::max(1, static_cast<int>(std::ceil(0.025 / mpp)));
+  for (std::size_t k = 0; k < scene.points.size(); ++k) {
+    const Vec3& p = scene.points[k];
+    geometry::Color c = scene.colors[k];
+    if (by_instance) {
+      const std::uint64_t hsh = synth::Mix64(static_cast<std::uint64_t>(scene.instance[k]) + 17);
+      c = scene.instance[k] == 0
+              ? geometry::Color(128, 128, 128)
+              : geometry::Color(60 + (hsh & 0xff) % 190, 60 + ((hsh >> 8) & 0xff) % 190,
+                                60 + ((hsh >> 16) & 0xff) % 190);
+    }
+    const int cx = margin + static_cast<int>((p.x() - b.min.x()) / mpp);
+    const int cy = h - 1 - margin - static_cast<int>((p.y() - b.min.y()) / mpp);
+    for (int dy = -splat / 2; dy <= splat / 2; ++dy) {
+      for (int dx = -splat / 2; dx <= splat / 2; ++dx) {
+        const int x = cx + dx, y = cy + dy;
+        if (x < 0 || y < 0 || x >= w || y >= h) continue;
+        const std::size_t i = static_cast<std::size_t>(y) * w + x;
+        if (p.z() <= zbuf[i]) continue;
+        zbuf[i] = static_cast<float>(p.z());
+        for (int ch = 0; ch < 3; ++ch) img[3 * i + ch] = c[ch];
+      }
+    }
+  }
+  std::ofstream f(ppm_path, std::ios::binary);
+  if (!f) throw Error("cannot write the render '" + ppm_path + "'");
+  f << "P6\n" << w << " " << h << "\n255\n";
+  f.write(reinterpret_cast<const char*>(img.data()), static_cast<std::streamsize>(img.size()));
+  if (!f) throw Error("error writing the render '" + ppm_path + "'");
 }
 
 std::string RealismReport(const std::vector<SceneSummary>& scenes) {
