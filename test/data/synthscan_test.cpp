@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -197,6 +198,50 @@ TEST(SynthScanTest, IndexShapeNetTreeAndSummary) {
       Error);
   fs::remove_all(root);
 }
+
+#ifdef DIMR_CLI
+std::string RunCli(const std::string& args, int* status) {
+  std::string out;
+  FILE* p = popen((std::string(DIMR_CLI) + " " + args + " 2>&1").c_str(), "r");
+  if (!p) return out;
+  char buf[512];
+  while (fgets(buf, sizeof(buf), p)) out += buf;
+  *status = pclose(p);
+  return out;
+}
+
+TEST(SynthCliTest, ShardsReproduceTheFullRunAndBadArgumentsFail) {
+  if (!fs::exists(DIMR_CLI)) GTEST_SKIP() << "dimr CLI not built";
+  const fs::path root = fs::temp_directory_path() / ("synth_cli_" + std::to_string(::getpid()));
+  const std::string common = " --scenes 3 --seed 9 --split test --frames-per-scene 6 --quiet";
+  int status = 0;
+  const std::string out = RunCli("synth --out " + (root / "all").string() + common, &status);
+  ASSERT_EQ(status, 0) << out;
+  EXPECT_NE(out.find("scenes: 3"), std::string::npos) << out;
+  RunCli("synth --out " + (root / "s1").string() + common + " --shard 1/2", &status);
+  ASSERT_EQ(status, 0);
+  for (const char* scene : {"scene8001_00"}) {
+    for (const auto& e : fs::directory_iterator(root / "all" / "scans" / scene)) {
+      EXPECT_EQ(Slurp(e.path()), Slurp(root / "s1" / "scans" / scene / e.path().filename()))
+          << e.path();
+    }
+  }
+  EXPECT_FALSE(fs::exists(root / "s1" / "scans" / "scene8000_00"));
+  EXPECT_TRUE(fs::exists(root / "s1" / "synthscan.shard-1-of-2.yaml"));
+  EXPECT_TRUE(fs::exists(root / "all" / "full_annotations.json"));
+  const auto s2c = ReadScan2CadAnnotations((root / "all" / "full_annotations.json").string());
+  EXPECT_EQ(s2c.size(), 3u);
+  const std::string bad = RunCli("synth --out " + (root / "x").string() + " --split dev", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(bad.find("split"), std::string::npos) << bad;
+  { std::ofstream(root / "file") << "x"; }
+  const std::string unwritable =
+      RunCli("synth --scenes 1 --out " + (root / "file").string(), &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(unwritable.find((root / "file").string()), std::string::npos) << unwritable;
+  fs::remove_all(root);
+}
+#endif
 
 }  // namespace
 }  // namespace dimr::data
