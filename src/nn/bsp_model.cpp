@@ -561,7 +561,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   auto& net = impl_->net;
   net->to(impl_->device);
 
-  const int total_epochs = opt.epochs_phase0 + opt.epochs_phase1 + opt.epochs_phase2;
+  // Phase boundaries (epochs); phase 0 may end early on its time budget (phase0_minutes).
+  int phase0_end = opt.epochs_phase0;
+  int total_epochs = opt.epochs_phase0 + opt.epochs_phase1 + opt.epochs_phase2;
   int start_epoch = 0;
   torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
   const std::string optim_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".optim";
@@ -581,7 +583,12 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
       for (auto& item : net->named_buffers()) item.value().copy_(srcb[item.key()]);
     }
     std::ifstream ef(epoch_path);
-    ef >> start_epoch;
+    int saved_phase0_end = -1;
+    ef >> start_epoch >> saved_phase0_end;
+    if (saved_phase0_end >= 0 && saved_phase0_end < phase0_end) {
+      total_epochs -= phase0_end - saved_phase0_end;
+      phase0_end = saved_phase0_end;
+    }
     if (std::filesystem::exists(optim_path)) {
       try {
         torch::load(optimizer, optim_path);
@@ -611,12 +618,18 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     net->to(impl_->device);
     std::filesystem::rename(tmp, opt.checkpoint_path);
     torch::save(optimizer, optim_path);
-    std::ofstream(epoch_path) << epoch_done << "\n";
+    std::ofstream(epoch_path) << epoch_done << " " << phase0_end << "\n";
   };
 
   for (int epoch = start_epoch; epoch < total_epochs; ++epoch) {
-    const int phase =
-        epoch < opt.epochs_phase0 ? 0 : (epoch < opt.epochs_phase0 + opt.epochs_phase1 ? 1 : 2);
+    if (opt.phase0_minutes > 0 && epoch < phase0_end &&
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count() / 60.0 >=
+            opt.phase0_minutes) {
+      std::fprintf(stderr, "phase 0 time budget reached after %d epochs\n", epoch);
+      total_epochs -= phase0_end - epoch;
+      phase0_end = epoch;
+    }
+    const int phase = epoch < phase0_end ? 0 : (epoch < phase0_end + opt.epochs_phase1 ? 1 : 2);
     impl_->phase = phase;
     const double lr = opt.learning_rate * std::pow(0.5, epoch / std::max(1, opt.lr_step_epochs));
     for (auto& group : optimizer.param_groups()) {

@@ -43,7 +43,8 @@ std::string CommandLine(const CLI::App& app) {
 struct TrainArgs {
   std::string train, val, out, config = "cpu", epochs = "60,30,0", device = "cpu";
   int batch = 16, points = 1024, threads = 0, checkpoint_every = 5;
-  double lr = 1e-4, kl = 0.01, max_minutes = 0;
+  double lr = 1e-4, kl = 0.01, max_minutes = 0, phase0_minutes = 0;
+  int lr_step = 200;
   std::uint64_t seed = 1;
   bool fp16 = true;
   bool fp32 = false;
@@ -104,6 +105,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.threads = a.threads;
   opt.device = a.device;
   opt.max_minutes = a.max_minutes;
+  opt.phase0_minutes = a.phase0_minutes;
+  opt.lr_step_epochs = a.lr_step;
   opt.checkpoint_every = a.checkpoint_every;
   std::filesystem::create_directories(a.out);
   opt.checkpoint_path = a.out + "/checkpoint.pt";
@@ -315,6 +318,10 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--threads", a->threads, "intra-op threads (0 = default)");
   app.add_option("--device", a->device, "cpu | cuda")->check(CLI::IsMember({"cpu", "cuda"}));
   app.add_option("--max-minutes", a->max_minutes, "stop after this many minutes (checkpointed)");
+  app.add_option("--phase0-minutes", a->phase0_minutes,
+                 "end the continuous phase after this many minutes (fixed-budget training)");
+  app.add_option("--lr-step", a->lr_step, "halve the learning rate every this many epochs")
+      ->check(CLI::Range(1, 1000000));
   app.add_option("--checkpoint-every", a->checkpoint_every);
   app.add_flag("--fp32", a->fp32, "store the final weights in fp32 instead of fp16");
   app.callback([a, &app]() {

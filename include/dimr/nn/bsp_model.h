@@ -51,8 +51,9 @@ struct BspTrainOptions {
   std::string device = "cpu";   // "cpu" or "cuda"
   std::string checkpoint_path;  // written every `checkpoint_every` epochs (and at the end)
   int checkpoint_every = 5;
-  bool resume = true;      // continue from checkpoint_path if it exists
-  double max_minutes = 0;  // stop (after checkpointing) when exceeded; 0 = no limit
+  bool resume = true;         // continue from checkpoint_path if it exists
+  double max_minutes = 0;     // stop (after checkpointing) when exceeded; 0 = no limit
+  double phase0_minutes = 0;  // end phase 0 early after this many minutes; 0 = no limit
 };
 
 struct BspEpochLog {
