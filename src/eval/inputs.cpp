@@ -6,6 +6,7 @@
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "dimr/eval/classes.h"
 #include "dimr/geometry/error.h"
@@ -86,11 +87,18 @@ MeshRecord ParseReferenceName(const std::string& path) {
 }
 
 std::vector<MeshRecord> ReadSceneResultJson(const std::string& path) {
-  std::ifstream in(path);
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw ParseError(path, "cannot open SceneResult JSON");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ParseSceneResultJson(ss.str(), path, fs::path(path).parent_path().string());
+}
+
+std::vector<MeshRecord> ParseSceneResultJson(const std::string& text, const std::string& path,
+                                             const std::string& folder_name) {
   nlohmann::json j;
   try {
-    in >> j;
+    j = nlohmann::json::parse(text);
   } catch (const std::exception& e) {
     throw ParseError(path, std::string("invalid JSON: ") + e.what());
   }
@@ -101,7 +109,7 @@ std::vector<MeshRecord> ReadSceneResultJson(const std::string& path) {
     throw ParseError(path, "missing array field 'instances'");
   }
   const std::string scene = j["scene"].get<std::string>();
-  const fs::path folder = fs::path(path).parent_path();
+  const fs::path folder(folder_name);
   std::vector<MeshRecord> out;
   int k = 0;
   for (const auto& inst : j["instances"]) {
@@ -124,6 +132,7 @@ std::vector<MeshRecord> ReadSceneResultJson(const std::string& path) {
                        where + ".class: unknown class '" + inst["class"].get<std::string>() + "'");
     }
     r.score = inst["score"].get<double>();
+    if (!std::isfinite(r.score)) throw ParseError(path, where + ".score is not finite");
     r.path = (folder / inst["mesh"].get<std::string>()).string();
     char key[32];
     std::snprintf(key, sizeof key, "#%08d", k);  // keeps array order within the scene

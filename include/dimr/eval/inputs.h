@@ -51,6 +51,10 @@ MeshRecord ParseReferenceName(const std::string& path);
 // folder or bad file.
 std::vector<MeshRecord> ListMeshFolder(const std::string& dir);
 std::vector<MeshRecord> ReadSceneResultJson(const std::string& path);
+// Parses SceneResult JSON text; mesh paths are resolved against `folder`; `source` names the
+// data in errors (dimr::ParseError for malformed JSON, missing fields, unknown classes).
+std::vector<MeshRecord> ParseSceneResultJson(const std::string& text, const std::string& source,
+                                             const std::string& folder);
 void WriteSceneResultJson(const std::string& path, const std::string& scene,
                           const std::vector<MeshRecord>& instances,
                           const std::vector<std::vector<int>>& points = {});
