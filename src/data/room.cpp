@@ -426,7 +426,7 @@ class Composer {
       const double angle = rng_.Bernoulli(0.35) ? 0.0 : rng_.Uniform(0.4, 1.6);
       const Vec3 hinge(t / 2 - leaf_t, y0 + fw, zb);
       const Vec3 c_local(leaf_t / 2, leaf_w / 2, leaf_h / 2);
-      const double a = angle;  // rotate leaf about z at the hinge, towards +x (into the room)
+      const double a = -angle;  // about z at the hinge: the leaf (along +y) turns towards +x
       const Vec3 c = hinge + Rz(a) * c_local;
       AppendRotatedBox(c, Vec3(leaf_t, leaf_w, leaf_h), a, &mesh);
       // Keep the swing area free of furniture.

@@ -64,6 +64,13 @@ TEST_F(RoomTest, ShapesCountsAndShell) {
       EXPECT_EQ(room.outline.size(), 4u);
     }
     EXPECT_GT(room.FloorArea(), 9.0);
+    // Doors sit in a wall and open into the room: nothing sticks out behind the wall.
+    for (const auto& o : room.objects) {
+      if (o.role != ObjectRole::kDoor) continue;
+      const Vec3 back = o.translation - o.Rotation() * Vec3(o.scale.x() / 2, 0, 0);
+      EXPECT_LE(DistanceToOutline(room, back.head<2>()), room.wall_thickness + 0.006);
+      EXPECT_FALSE(room.Inside(back.head<2>()));
+    }
     // Every wall's room-facing side (canonical +x face) lies on the outline.
     for (const auto& o : room.objects) {
       if (o.role != ObjectRole::kWall) continue;
