@@ -204,6 +204,20 @@ class Clipper {
   std::vector<Vec3> tmp_;
 };
 
+// Per-thread scratch buffers: the decoder calls IntersectHalfSpaces hundreds of times per
+// object, and reusing their capacity removes nearly all allocations from the clipping loop.
+struct Scratch {
+  Poly a, b;
+  Clipper clipper;
+};
+
+// Out of line on purpose: inside a shared library every use of a thread_local address is a
+// __tls_get_addr call, and GCC re-materialises the address at each use after inlining.
+__attribute__((noinline)) Scratch& ThreadScratch() {
+  thread_local Scratch scratch;
+  return scratch;
+}
+
 }  // namespace
 
 double Polytope::Volume() const {
@@ -255,22 +269,24 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
   const double scale = std::max(box.min.cwiseAbs().maxCoeff(), box.max.cwiseAbs().maxCoeff());
   const double tol = options.eps * scale;
 
-  // Per-thread scratch buffers: the decoder calls this hundreds of times per object, and
-  // reusing the capacity removes nearly all allocations from the clipping loop.
-  thread_local Poly cur, next;
-  thread_local Clipper clipper;
-  cur.Clear();
-  cur.verts.clear();
+  Scratch& scratch = ThreadScratch();
+  Clipper& clipper = scratch.clipper;
+  Poly* cur_p = &scratch.a;
+  Poly* next_p = &scratch.b;
+  Poly& box_poly = *cur_p;
+  box_poly.Clear();
+  box_poly.verts.clear();
   for (int i = 0; i < 8; ++i) {
-    cur.verts.emplace_back(i & 1 ? box.max.x() : box.min.x(), i & 2 ? box.max.y() : box.min.y(),
-                           i & 4 ? box.max.z() : box.min.z());
+    box_poly.verts.emplace_back(i & 1 ? box.max.x() : box.min.x(),
+                                i & 2 ? box.max.y() : box.min.y(),
+                                i & 4 ? box.max.z() : box.min.z());
   }
-  cur.AddFace({0, 2, 3, 1}, -1);  // z = min
-  cur.AddFace({4, 5, 7, 6}, -1);  // z = max
-  cur.AddFace({0, 1, 5, 4}, -1);  // y = min
-  cur.AddFace({2, 6, 7, 3}, -1);  // y = max
-  cur.AddFace({0, 4, 6, 2}, -1);  // x = min
-  cur.AddFace({1, 3, 7, 5}, -1);  // x = max
+  box_poly.AddFace({0, 2, 3, 1}, -1);  // z = min
+  box_poly.AddFace({4, 5, 7, 6}, -1);  // z = max
+  box_poly.AddFace({0, 1, 5, 4}, -1);  // y = min
+  box_poly.AddFace({2, 6, 7, 3}, -1);  // y = max
+  box_poly.AddFace({0, 4, 6, 2}, -1);  // x = min
+  box_poly.AddFace({1, 3, 7, 5}, -1);  // x = max
 
   for (std::size_t i = 0; i < planes.size(); ++i) {
     Vec3 n = planes[i].normal;
@@ -287,11 +303,12 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
     const double len = n.norm();
     n /= len;
     d /= len;
-    const int r = clipper.Clip(cur, next, n, d, tol, static_cast<int>(i));
+    const int r = clipper.Clip(*cur_p, *next_p, n, d, tol, static_cast<int>(i));
     if (r == -1) return out;
-    if (r == 1) std::swap(cur, next);
+    if (r == 1) std::swap(cur_p, next_p);
   }
 
+  const Poly& cur = *cur_p;
   out.vertices.assign(cur.verts.begin(), cur.verts.end());
   out.faces.reserve(cur.num_faces());
   for (int f = 0; f < cur.num_faces(); ++f) {
