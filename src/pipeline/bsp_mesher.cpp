@@ -73,36 +73,39 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
   const std::size_t cells = static_cast<std::size_t>(G) * G * G;
   auto coord = [G](int i) { return -1.0f + (2.0f * i + 1.0f) / static_cast<float>(G); };
 
-  // Exact polytope of every convex first: its bounding box limits the grid cells to test.
+  // A grid point can only be inside convex k (summed excess < threshold) if every single
+  // plane's excess is below the threshold, i.e. if it lies in the polytope of the planes
+  // shifted outwards by the threshold. That polytope's box bounds the cells to test exactly;
+  // an empty one means the convex holds no grid point.
   geometry::PolytopeOptions popt;
   popt.bounds.min = geometry::Vec3::Constant(-options.bound);
   popt.bounds.max = geometry::Vec3::Constant(options.bound);
   const std::size_t C = convex_planes.size();
-  std::vector<geometry::Polytope> polys(C);
   std::vector<std::vector<std::uint32_t>> inside(C);  // grid cells inside each convex
   std::vector<int> count(cells, 0);
   BspMeshResult result;
-  for (std::size_t k = 0; k < C; ++k) {
-    const auto& ids = convex_planes[k];
-    if (ids.empty()) continue;
+  auto half_spaces = [&](const std::vector<int>& ids, double shift) {
     std::vector<geometry::HalfSpace> hs;
     hs.reserve(ids.size());
     for (int p : ids) {
-      // The inside test tolerates a summed excess < threshold; the polytope is the exact
-      // zero-level set (like bspt), so cells are found from a box grown by one cell.
-      hs.push_back({geometry::Vec3(planes(p, 0), planes(p, 1), planes(p, 2)), planes(p, 3)});
+      hs.push_back({geometry::Vec3(planes(p, 0), planes(p, 1), planes(p, 2)),
+                    static_cast<double>(planes(p, 3)) - shift});
     }
-    polys[k] = geometry::IntersectHalfSpaces(hs, popt);
-    // Cell range to test: the polytope's box grown by one cell (or everything if empty,
-    // since a thin convex can still hold grid points within the tolerance).
-    int lo[3] = {0, 0, 0}, hi[3] = {G - 1, G - 1, G - 1};
-    if (!polys[k].empty()) {
-      geometry::AABB box;
-      for (const auto& v : polys[k].vertices) box.Extend(v);
-      for (int a = 0; a < 3; ++a) {
-        lo[a] = std::max(0, static_cast<int>(std::floor((box.min[a] + 1.0) * G / 2.0)) - 1);
-        hi[a] = std::min(G - 1, static_cast<int>(std::floor((box.max[a] + 1.0) * G / 2.0)) + 1);
-      }
+    return hs;
+  };
+  for (std::size_t k = 0; k < C; ++k) {
+    const auto& ids = convex_planes[k];
+    if (ids.empty()) continue;
+    const geometry::Polytope grown =
+        geometry::IntersectHalfSpaces(half_spaces(ids, options.inside_threshold), popt);
+    if (grown.empty()) continue;
+    geometry::AABB box;
+    for (const auto& v : grown.vertices) box.Extend(v);
+    int lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      // Cell centres c_i = -1 + (2i + 1) / G inside [box.min, box.max].
+      lo[a] = std::max(0, static_cast<int>(std::ceil((box.min[a] + 1.0) * G / 2.0 - 0.5)) - 1);
+      hi[a] = std::min(G - 1, static_cast<int>(std::floor((box.max[a] + 1.0) * G / 2.0 - 0.5)) + 1);
     }
     for (int z = lo[2]; z <= hi[2]; ++z) {
       for (int y = lo[1]; y <= hi[1]; ++y) {
@@ -131,9 +134,13 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
       for (std::uint32_t cell : inside[k]) --count[cell];
       continue;
     }
-    if (polys[k].empty()) continue;  // holds grid points only within the tolerance
+    // The mesh is the exact (unshifted) polytope, as bspt's; a convex that holds grid points
+    // only within the tolerance has none.
+    const geometry::Polytope poly =
+        geometry::IntersectHalfSpaces(half_spaces(convex_planes[k], 0.0), popt);
+    if (poly.empty()) continue;
     result.kept_convexes.push_back(static_cast<int>(k));
-    const geometry::TriangleMesh part = polys[k].ToMesh();
+    const geometry::TriangleMesh part = poly.ToMesh();
     result.mesh.Append(part);
     result.face_convex.insert(result.face_convex.end(), part.faces.size(), static_cast<int>(k));
   }
