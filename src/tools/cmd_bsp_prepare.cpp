@@ -1,5 +1,7 @@
 // `dimr bsp prepare`: BSP-CVAE training sets from the procedural CAD library.
+#include <Eigen/Core>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <memory>
 #include <sstream>
@@ -10,8 +12,12 @@
 #include "dimr/data/labels.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/bsp_dataset.h"
+#include "dimr/nn/bsp_model.h"
 #include "dimr/pipeline/bsp_data.h"
+#include "dimr/pipeline/bsp_mesher.h"
+#include "dimr/pipeline/shape_pool.h"
 #include "tools/command_registry.h"
+#include "tools/render.h"
 
 namespace dimr::tools {
 namespace {
@@ -44,6 +50,12 @@ struct PrepareArgs {
   int resolution = 32;
 };
 
+// Model seeds: disjoint streams per (seed, class) so train/val/test never share models.
+std::uint64_t ModelSeed(std::uint64_t seed, int cad_class, int i) {
+  return seed * 1000003ull + static_cast<std::uint64_t>(cad_class) * 7919ull * 1000003ull +
+         static_cast<std::uint64_t>(i);
+}
+
 void RunPrepare(const PrepareArgs& a) {
   nn::BspDataset data;
   data.resolution = a.resolution;
@@ -55,9 +67,7 @@ void RunPrepare(const PrepareArgs& a) {
   const std::size_t total = classes.size() * static_cast<std::size_t>(a.per_class);
   for (int c : classes) {
     for (int i = 0; i < a.per_class; ++i) {
-      // Model seeds: disjoint streams per (seed, class) so train/val/test never share models.
-      const std::uint64_t model_seed =
-          a.seed * 1000003ull + static_cast<std::uint64_t>(c) * 7919ull * 1000003ull + i;
+      const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
       const data::CadModel m = data::GenerateCadModel(c, model_seed);
       data.samples.push_back(
           pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, model_seed ^ 0x9e3779b97f4a7c15ull));
@@ -85,6 +95,113 @@ void SetupPrepare(CLI::App& app) {
   app.callback([a]() { RunPrepare(*a); });
 }
 
+// ---------------------------------------------------------------- render
+struct RenderArgs {
+  std::string model, out, interp_out;
+  int per_class = 3;
+  std::uint64_t seed = 3;
+  int tile = 150;
+  std::string interp_class = "chair";
+  int steps = 6;
+};
+
+// Decoded mesh of a CAD model through the autoencoder, with its grid IoU (percent).
+tools::RenderTile Reconstruct(const nn::BspModel& model,
+                              const std::vector<std::vector<int>>& convexes,
+                              const Eigen::VectorXf& mu, int c, const geometry::Vec3& scale,
+                              const nn::BspSample* sample) {
+  const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
+  const pipeline::BspMeshResult r = pipeline::ExtractBspMesh(planes, convexes);
+  tools::RenderTile t;
+  t.mesh = r.mesh;
+  t.scale = scale;
+  for (int k : r.face_convex)
+    t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
+  if (sample) {
+    const int R = model.config().resolution;
+    Eigen::MatrixX3f centers(R * R * R, 3);
+    for (int z = 0; z < R; ++z)
+      for (int y = 0; y < R; ++y)
+        for (int x = 0; x < R; ++x)
+          centers.row(x + R * (y + R * z)) << -1.0f + (2.0f * x + 1) / R,
+              -1.0f + (2.0f * y + 1) / R, -1.0f + (2.0f * z + 1) / R;
+    const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
+    std::size_t inter = 0, uni = 0;
+    for (std::size_t i = 0; i < occ.size(); ++i) {
+      inter += occ[i] && sample->iou_grid[i];
+      uni += occ[i] || sample->iou_grid[i];
+    }
+    t.label = "bsp iou " + std::to_string(uni ? (100 * inter) / uni : 100);
+  }
+  return t;
+}
+
+void RunRender(const RenderArgs& a) {
+  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const auto convexes = model.ConvexPlanes();
+  pipeline::BspSampleOptions opt;
+  opt.resolution = model.config().resolution;
+  auto original = [&](int c, int i, nn::BspSample* sample) {
+    const std::uint64_t seed = ModelSeed(a.seed, c, i);
+    const data::CadModel m = data::GenerateCadModel(c, seed);
+    *sample = pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
+    tools::RenderTile t;
+    t.mesh = pipeline::NormalizeForBsp(m.mesh, opt.resolution);
+    t.scale = m.nominal_size;
+    t.color = tools::NameColour(data::CadClassNames()[c]);
+    t.label = data::CadClassNames()[c];
+    return t;
+  };
+  std::vector<tools::RenderTile> tiles;
+  for (int c = 0; c < model.config().num_classes && c < data::kNumCadClasses; ++c) {
+    for (int i = 0; i < a.per_class; ++i) {
+      nn::BspSample sample;
+      tools::RenderTile orig = original(c, i, &sample);
+      const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
+      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample));
+      tiles.insert(tiles.end() - 1, std::move(orig));
+    }
+  }
+  tools::RenderSheet(tiles, 2 * a.per_class, a.tile, a.out);
+  std::printf("rendered %zu originals and reconstructions -> %s\n", tiles.size() / 2,
+              a.out.c_str());
+  if (a.interp_out.empty()) return;
+  const int c = data::CadClassFromName(a.interp_class);
+  if (c < 0) throw InvalidArgument("--interp-class: unknown class '" + a.interp_class + "'");
+  nn::BspSample sa, sb;
+  tools::RenderTile ta = original(c, 0, &sa), tb = original(c, 1, &sb);
+  const Eigen::VectorXf za = model.Encode(sa.grid, c).first, zb = model.Encode(sb.grid, c).first;
+  std::vector<tools::RenderTile> strip;
+  strip.push_back(ta);
+  for (int s = 0; s < a.steps; ++s) {
+    const double t = a.steps == 1 ? 0.0 : static_cast<double>(s) / (a.steps - 1);
+    const geometry::Vec3 scale = (1 - t) * ta.scale + t * tb.scale;
+    tools::RenderTile tile =
+        Reconstruct(model, convexes, pipeline::InterpolateCodes(za, zb, t), c, scale, nullptr);
+    tile.label = "t " + std::to_string(static_cast<int>(std::lround(100 * t)));
+    strip.push_back(std::move(tile));
+  }
+  strip.push_back(tb);
+  tools::RenderSheet(strip, static_cast<int>(strip.size()), a.tile, a.interp_out);
+  std::printf("rendered the interpolation strip -> %s\n", a.interp_out.c_str());
+}
+
+void SetupRender(CLI::App& app) {
+  auto a = std::make_shared<RenderArgs>();
+  app.add_option("--model", a->model, "BSP-CVAE weights")->required();
+  app.add_option("--out", a->out, "PNG of originals next to reconstructions")->required();
+  app.add_option("--interp-out", a->interp_out, "PNG of a latent interpolation strip");
+  app.add_option("--per-class", a->per_class)->check(CLI::Range(1, 20));
+  app.add_option("--seed", a->seed, "model stream (as `bsp prepare --seed`; 3 = the test split)");
+  app.add_option("--tile", a->tile, "pixels per tile")->check(CLI::Range(32, 1024));
+  app.add_option("--interp-class", a->interp_class);
+  app.add_option("--steps", a->steps)->check(CLI::Range(1, 20));
+  app.callback([a]() { RunRender(*a); });
+}
+
+const Registrar kRender("bsp", "render",
+                        "Pictures: CAD originals next to their BSP reconstructions, interpolation",
+                        &SetupRender);
 const Registrar kPrepare("bsp", "prepare",
                          "Build a BSP-CVAE training set from the procedural CAD library",
                          &SetupPrepare);
