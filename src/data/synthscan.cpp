@@ -413,8 +413,7 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& c, std::uint64_
   if (!f) throw Error("error writing the SynthScan index '" + path + "'");
 }
 
-void RenderTopDown(const SynthScene& scene, const std::string& ppm_path, double mpp,
-                   bool by_instance) {
+RgbImage RenderTopDown(const SynthScene& scene, double mpp, bool by_instance) {
   if (!(mpp > 0)) throw InvalidArgument("RenderTopDown: metres_per_pixel must be > 0");
   geometry::AABB b;
   for (const auto& p : scene.points) b.Extend(p);
@@ -423,7 +422,11 @@ void RenderTopDown(const SynthScene& scene, const std::string& ppm_path, double 
   const int w = static_cast<int>(b.Extent().x() / mpp) + 2 * margin;
   const int h = static_cast<int>(b.Extent().y() / mpp) + 2 * margin;
   if (w > 8000 || h > 8000) throw InvalidArgument("RenderTopDown: image too large");
-  std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h * 3, 255);
+  RgbImage out;
+  out.width = w;
+  out.height = h;
+  std::vector<std::uint8_t>& img = out.rgb;
+  img.assign(static_cast<std::size_t>(w) * h * 3, 255);
   std::vector<float> zbuf(static_cast<std::size_t>(w) * h, -1e9f);
   const int splat = std::max(1, static_cast<int>(std::ceil(0.025 / mpp)));
   for (std::size_t k = 0; k < scene.points.size(); ++k) {
@@ -449,11 +452,7 @@ void RenderTopDown(const SynthScene& scene, const std::string& ppm_path, double 
       }
     }
   }
-  std::ofstream f(ppm_path, std::ios::binary);
-  if (!f) throw Error("cannot write the render '" + ppm_path + "'");
-  f << "P6\n" << w << " " << h << "\n255\n";
-  f.write(reinterpret_cast<const char*>(img.data()), static_cast<std::streamsize>(img.size()));
-  if (!f) throw Error("error writing the render '" + ppm_path + "'");
+  return out;
 }
 
 std::string RealismReport(const std::vector<SceneSummary>& scenes) {

@@ -23,6 +23,7 @@
 #include "dimr/data/synthscan.h"
 #include "dimr/geometry/error.h"
 #include "tools/command_registry.h"
+#include "tools/render.h"
 #ifdef DIMR_HAVE_ROS
 #include "dimr/ros/bag_writer.h"
 #endif
@@ -195,10 +196,8 @@ RunResult RunSynth(const SynthOptions& o) {
           const fs::path dir = out / "renders";
           for (const bool inst : {false, true}) {
             const std::string stem = (dir / (name + (inst ? "_instances" : ""))).string();
-            dimr::data::RenderTopDown(g.scene, stem + ".ppm", 0.01, inst);
-            // PNG through ImageMagick when it is installed; the PPM stays otherwise.
-            const std::string cmd = "convert '" + stem + ".ppm' '" + stem + ".png' 2>/dev/null";
-            if (std::system(cmd.c_str()) == 0) fs::remove(stem + ".ppm");
+            const dimr::data::RgbImage img = dimr::data::RenderTopDown(g.scene, 0.01, inst);
+            dimr::tools::WritePng(stem + ".png", img.width, img.height, img.rgb);
           }
         }
         SceneSummary sum = dimr::data::Summarize(g);

@@ -122,11 +122,17 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& config, std::ui
                      const std::string& split, int shard, int num_shards,
                      const std::vector<SceneSummary>& scenes);
 
-// Top-down orthographic render of a scene's cloud (highest point wins, each point splatted as
-// a small square) as a binary PPM: by point colour, or by instance with `by_instance` (random
-// colour per instance, unlabelled points grey). Throws dimr::Error naming the path.
-void RenderTopDown(const SynthScene& scene, const std::string& ppm_path, double metres_per_pixel,
-                   bool by_instance);
+// An 8-bit RGB image, row-major, top row first.
+struct RgbImage {
+  int width = 0;
+  int height = 0;
+  std::vector<std::uint8_t> rgb;
+};
+
+// Top-down (bird's-eye) render of a scene's cloud, `metres_per_pixel` per pixel, coloured by
+// point colour or (by_instance) by instance id; highest point wins. Write it with any image
+// writer (the `dimr` tools write PNG).
+RgbImage RenderTopDown(const SynthScene& scene, double metres_per_pixel, bool by_instance);
 
 // Realism statistics next to the ScanNet figures of the issue, as a Markdown table.
 std::string RealismReport(const std::vector<SceneSummary>& scenes);
