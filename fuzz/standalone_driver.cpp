@@ -2,11 +2,11 @@
 // file of the given corpus folders/files, then runs seeded random mutations of them
 // (bit flips, byte replacements, truncation, insertion, splicing, integer overwrites).
 // Any crash, sanitizer report or escaping exception fails the run.
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <algorithm>
 #include <exception>
 #include <filesystem>
 #include <fstream>
@@ -58,8 +58,9 @@ std::vector<std::uint8_t> Mutate(std::vector<std::uint8_t> s, std::mt19937_64& r
         break;
       }
       case 4: {  // overwrite with an interesting ASCII number
-        static const char* kNums[] = {"0", "-1", "4294967295", "99999999999", "nan", "inf",
-                                      "1e308", "-2147483648", "3", "255", "65536"};
+        static const char* kNums[] = {"0",   "-1",  "4294967295", "99999999999",
+                                      "nan", "inf", "1e308",      "-2147483648",
+                                      "3",   "255", "65536"};
         const char* num = kNums[rng() % (sizeof(kNums) / sizeof(kNums[0]))];
         const std::size_t len = std::strlen(num);
         if (size >= len) {

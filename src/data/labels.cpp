@@ -7,12 +7,31 @@
 namespace dimr::data {
 
 const std::array<const char*, kNumRfsClasses>& RfsClassNames() {
-  static const std::array<const char*, kNumRfsClasses> kNames = {
-      "wall",           "floor",     "cabinet",     "bed",        "chair",
-      "sofa",           "table",     "door",        "window",     "bookshelf",
-      "picture",        "counter",   "desk",        "curtain",    "refridgerator",
-      "shower curtain", "toilet",    "sink",        "bathtub",    "otherfurniture",
-      "kitchen_cabinet", "display",  "trash_bin",   "other_shelf", "other_table"};
+  static const std::array<const char*, kNumRfsClasses> kNames = {"wall",
+                                                                 "floor",
+                                                                 "cabinet",
+                                                                 "bed",
+                                                                 "chair",
+                                                                 "sofa",
+                                                                 "table",
+                                                                 "door",
+                                                                 "window",
+                                                                 "bookshelf",
+                                                                 "picture",
+                                                                 "counter",
+                                                                 "desk",
+                                                                 "curtain",
+                                                                 "refridgerator",
+                                                                 "shower curtain",
+                                                                 "toilet",
+                                                                 "sink",
+                                                                 "bathtub",
+                                                                 "otherfurniture",
+                                                                 "kitchen_cabinet",
+                                                                 "display",
+                                                                 "trash_bin",
+                                                                 "other_shelf",
+                                                                 "other_table"};
   return kNames;
 }
 

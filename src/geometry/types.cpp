@@ -84,8 +84,7 @@ void CheckAttributes(const std::vector<VertexAttribute>& attrs, std::size_t n,
   }
 }
 
-void CheckOptional(std::size_t have, std::size_t n, const std::string& what,
-                   const char* field) {
+void CheckOptional(std::size_t have, std::size_t n, const std::string& what, const char* field) {
   if (have != 0 && have != n) {
     throw InvalidArgument(what + ": " + field + " has " + std::to_string(have) + " entries for " +
                           std::to_string(n) + " vertices");

@@ -1,7 +1,8 @@
+#include "dimr/geometry/types.h"
+
 #include <gtest/gtest.h>
 
 #include "dimr/geometry/error.h"
-#include "dimr/geometry/types.h"
 
 namespace dimr::geometry {
 namespace {

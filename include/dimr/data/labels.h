@@ -16,16 +16,42 @@ constexpr int kIgnoreLabel = -100;  // semantic ignore index of the losses
 constexpr int kNonCad = -1;
 
 enum RfsClass : int {
-  kWall = 0, kFloor = 1, kCabinet = 2, kBed = 3, kChair = 4, kSofa = 5, kTable = 6, kDoor = 7,
-  kWindow = 8, kBookshelf = 9, kPicture = 10, kCounter = 11, kDesk = 12, kCurtain = 13,
-  kRefridgerator = 14, kShowerCurtain = 15, kToilet = 16, kSink = 17, kBathtub = 18,
-  kOtherFurniture = 19, kKitchenCabinet = 20, kDisplay = 21, kTrashBin = 22, kOtherShelf = 23,
+  kWall = 0,
+  kFloor = 1,
+  kCabinet = 2,
+  kBed = 3,
+  kChair = 4,
+  kSofa = 5,
+  kTable = 6,
+  kDoor = 7,
+  kWindow = 8,
+  kBookshelf = 9,
+  kPicture = 10,
+  kCounter = 11,
+  kDesk = 12,
+  kCurtain = 13,
+  kRefridgerator = 14,
+  kShowerCurtain = 15,
+  kToilet = 16,
+  kSink = 17,
+  kBathtub = 18,
+  kOtherFurniture = 19,
+  kKitchenCabinet = 20,
+  kDisplay = 21,
+  kTrashBin = 22,
+  kOtherShelf = 23,
   kOtherTable = 24
 };
 
 enum CadClass : int {
-  kCadTable = 0, kCadChair = 1, kCadBookshelf = 2, kCadSofa = 3, kCadTrashBin = 4,
-  kCadCabinet = 5, kCadDisplay = 6, kCadBathtub = 7
+  kCadTable = 0,
+  kCadChair = 1,
+  kCadBookshelf = 2,
+  kCadSofa = 3,
+  kCadTrashBin = 4,
+  kCadCabinet = 5,
+  kCadDisplay = 6,
+  kCadBathtub = 7
 };
 
 // Network-order names ("wall", "floor", ..., "other_table").
