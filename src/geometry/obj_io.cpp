@@ -16,22 +16,6 @@
 namespace dimr::geometry {
 namespace {
 
-std::string Printable(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 40)) {
-    const auto u = static_cast<unsigned char>(c);
-    if (u >= 32 && u < 127) {
-      out += c;
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", u);
-      out += buf;
-    }
-  }
-  if (s.size() > 40) out += "...";
-  return out;
-}
-
 bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
 
 // Statements of the OBJ specification that this reader does not need (everything except
@@ -89,10 +73,10 @@ class ObjParser {
     const char* e = b + tok.size();
     const auto r = std::from_chars(b, e, v);
     if (r.ptr != e || (r.ec != std::errc() && r.ec != std::errc::result_out_of_range)) {
-      Fail("'" + Printable(tok) + "' is not a number");
+      Fail("'" + detail::Printable(tok) + "' is not a number");
     }
     if (r.ec == std::errc::result_out_of_range)
-      Fail("number '" + Printable(tok) + "' out of range");
+      Fail("number '" + detail::Printable(tok) + "' out of range");
     return v;
   }
 
@@ -126,7 +110,7 @@ class ObjParser {
     } else if (key == "f") {
       ParseFace();
     } else if (!IsIdentifier(key)) {
-      Fail("unknown statement '" + Printable(key) + "'");
+      Fail("unknown statement '" + detail::Printable(key) + "'");
     }
     // o, g, s, usemtl, mtllib, l, p, ... : ignored.
   }
@@ -138,7 +122,7 @@ class ObjParser {
     const char* e = b + tok.size();
     const auto r = std::from_chars(b, e, v);
     if (r.ec != std::errc() || r.ptr != e)
-      Fail(std::string("invalid ") + what + " index '" + Printable(tok) + "'");
+      Fail(std::string("invalid ") + what + " index '" + detail::Printable(tok) + "'");
     const long long n = static_cast<long long>(count);
     long long idx = -1;
     if (v > 0 && v <= n) idx = v - 1;
@@ -167,7 +151,8 @@ class ObjParser {
       if (!tpart.empty()) Index(tpart, num_texcoords_, "texture coordinate");
       if (s2 == std::string_view::npos) continue;
       const std::string_view npart = rest.substr(s2 + 1);
-      if (npart.empty() && tpart.empty()) Fail("invalid face vertex '" + Printable(tok) + "'");
+      if (npart.empty() && tpart.empty())
+        Fail("invalid face vertex '" + detail::Printable(tok) + "'");
       if (!npart.empty()) Index(npart, num_normals_, "normal");
     }
     for (std::size_t k = 1; k + 1 < corners_.size(); ++k) {
@@ -184,16 +169,6 @@ class ObjParser {
   std::size_t num_texcoords_ = 0;
   std::size_t line_no_ = 0;
 };
-
-std::string LowerExtension(const std::string& path) {
-  const std::size_t slash = path.find_last_of('/');
-  const std::size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string ext = path.substr(dot);
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
 
 }  // namespace
 
@@ -236,6 +211,16 @@ void WriteObj(const std::string& path, const TriangleMesh& mesh, int precision) 
     out += '\n';
   }
   detail::WriteFileBytes(path, out);
+}
+
+std::string LowerExtension(const std::string& path) {
+  const std::size_t slash = path.find_last_of('/');
+  const std::size_t dot = path.find_last_of('.');
+  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
+  std::string ext = path.substr(dot);
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
 }
 
 TriangleMesh ReadMesh(const std::string& path) {

@@ -32,6 +32,22 @@ namespace dimr::geometry {
 // ---------------------------------------------------------------------------
 namespace detail {
 
+std::string Printable(std::string_view s) {
+  std::string out;
+  for (char c : s.substr(0, 40)) {
+    const auto u = static_cast<unsigned char>(c);
+    if (u >= 32 && u < 127) {
+      out += c;
+    } else {
+      char buf[8];
+      std::snprintf(buf, sizeof(buf), "\\x%02x", u);
+      out += buf;
+    }
+  }
+  if (s.size() > 40) out += "...";
+  return out;
+}
+
 std::vector<std::uint8_t> ReadFileBytes(const std::string& path) {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
   if (fd < 0) throw ParseError(path, std::string("cannot open file: ") + std::strerror(errno));
@@ -137,22 +153,6 @@ bool ParseTypeName(std::string_view s, ScalarType* t) {
   return false;
 }
 
-std::string Printable(std::string_view s) {
-  std::string out;
-  for (char c : s.substr(0, 40)) {
-    const auto u = static_cast<unsigned char>(c);
-    if (u >= 32 && u < 127) {
-      out += c;
-    } else {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\x%02x", u);
-      out += buf;
-    }
-  }
-  if (s.size() > 40) out += "...";
-  return out;
-}
-
 // ---------------------------------------------------------------------------
 // Header.
 // ---------------------------------------------------------------------------
@@ -252,10 +252,10 @@ Header ParseHeader(const std::uint8_t* data, std::size_t size, const std::string
       } else if (words[1] == "binary_big_endian") {
         h.format = PlyFormat::kBinaryBigEndian;
       } else {
-        fail("unknown format '" + Printable(words[1]) + "'");
+        fail("unknown format '" + detail::Printable(words[1]) + "'");
       }
       if (words[2] != "1.0" && words[2] != "1") {
-        fail("unsupported PLY version '" + Printable(words[2]) + "'");
+        fail("unsupported PLY version '" + detail::Printable(words[2]) + "'");
       }
       have_format = true;
     } else if (key == "element") {
@@ -265,10 +265,11 @@ Header ParseHeader(const std::uint8_t* data, std::size_t size, const std::string
       const char* e = b + words[2].size();
       const auto r = std::from_chars(b, e, count);
       if (r.ec != std::errc() || r.ptr != e) {
-        fail("element '" + Printable(words[1]) + "': invalid count '" + Printable(words[2]) + "'");
+        fail("element '" + detail::Printable(words[1]) + "': invalid count '" +
+             detail::Printable(words[2]) + "'");
       }
       if (!element_names.emplace(words[1]).second) {
-        fail("duplicate element '" + Printable(words[1]) + "'");
+        fail("duplicate element '" + detail::Printable(words[1]) + "'");
       }
       property_names.clear();
       h.elements.push_back(Element{std::string(words[1]), count, {}});
@@ -279,34 +280,34 @@ Header ParseHeader(const std::uint8_t* data, std::size_t size, const std::string
       if (words.size() >= 2 && words[1] == "list") {
         if (words.size() != 5) fail("malformed list property line");
         if (!ParseTypeName(words[2], &p.count_type)) {
-          fail("unknown property type '" + Printable(words[2]) + "'");
+          fail("unknown property type '" + detail::Printable(words[2]) + "'");
         }
         if (!ParseTypeName(words[3], &p.type)) {
-          fail("unknown property type '" + Printable(words[3]) + "'");
+          fail("unknown property type '" + detail::Printable(words[3]) + "'");
         }
         if (!IsIntegerType(p.count_type)) {
-          fail("list '" + Printable(words[4]) + "': count type " + ScalarName(p.count_type) +
-               " is not an integer type");
+          fail("list '" + detail::Printable(words[4]) + "': count type " +
+               ScalarName(p.count_type) + " is not an integer type");
         }
         p.is_list = true;
         p.name = std::string(words[4]);
       } else {
         if (words.size() != 3) fail("malformed property line");
         if (!ParseTypeName(words[1], &p.type)) {
-          fail("unknown property type '" + Printable(words[1]) + "'");
+          fail("unknown property type '" + detail::Printable(words[1]) + "'");
         }
         p.name = std::string(words[2]);
       }
       if (!property_names.insert(p.name).second) {
-        fail("element '" + Printable(el.name) + "': duplicate property '" + Printable(p.name) +
-             "'");
+        fail("element '" + detail::Printable(el.name) + "': duplicate property '" +
+             detail::Printable(p.name) + "'");
       }
       el.props.push_back(std::move(p));
     } else if (key == "end_header") {
       if (words.size() != 1) fail("malformed 'end_header' line");
       break;
     } else {
-      fail("unknown header keyword '" + Printable(key) + "'");
+      fail("unknown header keyword '" + detail::Printable(key) + "'");
     }
   }
   if (!have_format) throw ParseError(source, "header has no 'format' line");
@@ -533,7 +534,7 @@ class BodyReader {
       }
       const std::size_t budget = binary ? src.Remaining() : src.Remaining() + 1;
       if (el.count > budget / min_record) {
-        throw ParseError(source_, "element '" + Printable(el.name) + "' claims " +
+        throw ParseError(source_, "element '" + detail::Printable(el.name) + "' claims " +
                                       std::to_string(el.count) + " records (at least " +
                                       std::to_string(min_record) + " bytes each) but only " +
                                       std::to_string(src.Remaining()) + " bytes remain");
@@ -599,9 +600,9 @@ class BodyReader {
   template <typename Source>
   [[noreturn]] void FailRead(const Source& src, const Element& el, std::uint64_t i,
                              const Property& p, Status st, bool count) const {
-    std::string what =
-        Printable(el.name) + " " + std::to_string(i) + ": property '" + Printable(p.name) + "': ";
-    const std::string tok = Printable(src.LastToken());
+    std::string what = detail::Printable(el.name) + " " + std::to_string(i) + ": property '" +
+                       detail::Printable(p.name) + "': ";
+    const std::string tok = detail::Printable(src.LastToken());
     const char* type = ScalarName(count ? p.count_type : p.type);
     switch (st) {
       case Status::kEof:
@@ -625,8 +626,8 @@ class BodyReader {
                      std::uint64_t n) {
     if constexpr (std::is_same_v<Source, BinarySource>) {
       if (!src.Skip(n, static_cast<std::size_t>(ScalarSize(p.type)))) {
-        Fail(source_, Printable(el.name) + " " + std::to_string(i) + ": property '" +
-                          Printable(p.name) + "': list of " + std::to_string(n) +
+        Fail(source_, detail::Printable(el.name) + " " + std::to_string(i) + ": property '" +
+                          detail::Printable(p.name) + "': list of " + std::to_string(n) +
                           " items runs past the end of the file");
       }
     } else {
@@ -644,8 +645,9 @@ class BodyReader {
     const Status st = src.Read(p.count_type, &c);
     if (st != Status::kOk) FailRead(src, el, i, p, st, true);
     if (c < 0) {
-      Fail(src.Location(source_), Printable(el.name) + " " + std::to_string(i) + ": property '" +
-                                      Printable(p.name) + "': negative list count " +
+      Fail(src.Location(source_), detail::Printable(el.name) + " " + std::to_string(i) +
+                                      ": property '" + detail::Printable(p.name) +
+                                      "': negative list count " +
                                       std::to_string(static_cast<long long>(c)));
     }
     return static_cast<std::uint64_t>(c);
@@ -712,7 +714,7 @@ class BodyReader {
       }
       if (fixed) {
         if (!src.Skip(el.count, record)) {
-          Fail(source_, "element '" + Printable(el.name) + "': unexpected end of file");
+          Fail(source_, "element '" + detail::Printable(el.name) + "': unexpected end of file");
         }
         return;
       }

@@ -13,6 +13,7 @@
 #include "dimr/geometry/kdtree.h"
 #include "dimr/geometry/mesh_distance.h"
 #include "dimr/geometry/polytope.h"
+#include "tools/bench_meshes.h"
 
 namespace dimr::geometry {
 namespace {
@@ -27,32 +28,10 @@ std::vector<Vec3> UniformPoints(int n, unsigned seed, double lo = -1.0, double h
 
 // A closed, bumpy latitude/longitude sphere with 2 * lon * (lat - 1) triangles.
 TriangleMesh BumpySphere(int lat, int lon) {
-  TriangleMesh m;
-  auto radius = [](double th, double ph) {
-    return 1.0 + 0.1 * std::sin(5 * th) * std::cos(7 * ph);
-  };
-  m.vertices.emplace_back(0, 0, radius(0, 0));
-  for (int i = 1; i < lat; ++i) {
-    const double th = M_PI * i / lat;
-    for (int j = 0; j < lon; ++j) {
-      const double ph = 2 * M_PI * j / lon;
-      const double r = radius(th, ph);
-      m.vertices.emplace_back(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph),
-                              r * std::cos(th));
-    }
-  }
-  m.vertices.emplace_back(0, 0, -radius(M_PI, 0));
-  const int south = static_cast<int>(m.vertices.size()) - 1;
-  auto ring = [lon](int i, int j) { return 1 + (i - 1) * lon + (j % lon); };
-  for (int j = 0; j < lon; ++j) m.faces.emplace_back(0, ring(1, j), ring(1, j + 1));
-  for (int i = 1; i + 1 < lat; ++i) {
-    for (int j = 0; j < lon; ++j) {
-      m.faces.emplace_back(ring(i, j), ring(i + 1, j), ring(i + 1, j + 1));
-      m.faces.emplace_back(ring(i, j), ring(i + 1, j + 1), ring(i, j + 1));
-    }
-  }
-  for (int j = 0; j < lon; ++j) m.faces.emplace_back(south, ring(lat - 1, j + 1), ring(lat - 1, j));
-  return m;
+  return dimr::tools::LatLonMesh(lat, lon, [](double th, double ph) {
+    const double r = 1.0 + 0.1 * std::sin(5 * th) * std::cos(7 * ph);
+    return Vec3(r * std::sin(th) * std::cos(ph), r * std::sin(th) * std::sin(ph), r * std::cos(th));
+  });
 }
 
 // Random convexes around the origin: planes tangent to spheres of radius 0.2..0.9.

@@ -11,34 +11,17 @@
 #include "dimr/geometry/oriented_box.h"
 #include "dimr/geometry/sampling.h"
 #include "dimr/geometry/voxelize.h"
+#include "tools/bench_meshes.h"
 
 namespace dimr::geometry {
 namespace {
 
 // Latitude/longitude ellipsoid with semi-axes `r`, centred at `c`: 2 * lon * (lat - 1) triangles.
 TriangleMesh Ellipsoid(const Vec3& c, const Vec3& r, int lat, int lon) {
-  TriangleMesh m;
-  m.vertices.push_back(c + Vec3(0, 0, r.z()));
-  for (int i = 1; i < lat; ++i) {
-    const double th = M_PI * i / lat;
-    for (int j = 0; j < lon; ++j) {
-      const double ph = 2 * M_PI * j / lon;
-      m.vertices.push_back(c + Vec3(r.x() * std::sin(th) * std::cos(ph),
-                                    r.y() * std::sin(th) * std::sin(ph), r.z() * std::cos(th)));
-    }
-  }
-  m.vertices.push_back(c - Vec3(0, 0, r.z()));
-  const int south = static_cast<int>(m.vertices.size()) - 1;
-  auto ring = [lon](int i, int j) { return 1 + (i - 1) * lon + (j % lon); };
-  for (int j = 0; j < lon; ++j) m.faces.emplace_back(0, ring(1, j), ring(1, j + 1));
-  for (int i = 1; i + 1 < lat; ++i) {
-    for (int j = 0; j < lon; ++j) {
-      m.faces.emplace_back(ring(i, j), ring(i + 1, j), ring(i + 1, j + 1));
-      m.faces.emplace_back(ring(i, j), ring(i + 1, j + 1), ring(i, j + 1));
-    }
-  }
-  for (int j = 0; j < lon; ++j) m.faces.emplace_back(south, ring(lat - 1, j + 1), ring(lat - 1, j));
-  return m;
+  return dimr::tools::LatLonMesh(lat, lon, [&](double th, double ph) {
+    return Vec3(c + Vec3(r.x() * std::sin(th) * std::cos(ph), r.y() * std::sin(th) * std::sin(ph),
+                         r.z() * std::cos(th)));
+  });
 }
 
 // Closed box of size `s` centred at the origin, each face an n x n grid of quads, then

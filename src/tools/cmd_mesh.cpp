@@ -18,16 +18,6 @@ namespace {
 using dimr::geometry::PlyFormat;
 using dimr::geometry::TriangleMesh;
 
-std::string Extension(const std::string& path) {
-  const std::size_t slash = path.find_last_of('/');
-  const std::size_t dot = path.find_last_of('.');
-  if (dot == std::string::npos || (slash != std::string::npos && dot < slash)) return "";
-  std::string ext = path.substr(dot);
-  std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-  return ext;
-}
-
 std::string Vec(const dimr::geometry::Vec3& v) {
   char buf[128];
   std::snprintf(buf, sizeof(buf), "(%.9g, %.9g, %.9g)", v.x(), v.y(), v.z());
@@ -35,7 +25,7 @@ std::string Vec(const dimr::geometry::Vec3& v) {
 }
 
 void PrintInfo(const std::string& path) {
-  const std::string ext = Extension(path);
+  const std::string ext = dimr::geometry::LowerExtension(path);
   std::string format = "obj";
   if (ext == ".ply") {
     const auto header = dimr::geometry::ReadPlyHeader(path);
@@ -103,7 +93,7 @@ struct ConvertArgs {
 
 void Convert(const ConvertArgs& a) {
   const TriangleMesh mesh = dimr::geometry::ReadMesh(a.in);
-  const std::string ext = Extension(a.out);
+  const std::string ext = dimr::geometry::LowerExtension(a.out);
   const int n_format = int(a.ascii) + int(a.binary_le) + int(a.binary_be);
   if (n_format > 1) {
     throw dimr::InvalidArgument(

@@ -16,6 +16,8 @@ void WriteObj(const std::string& path, const TriangleMesh& mesh, int precision =
 
 // Reads .ply or .obj by extension (case-insensitive); throws ParseError otherwise.
 TriangleMesh ReadMesh(const std::string& path);
+// The lower-case extension of a path including the dot (".ply"), or "" if it has none.
+std::string LowerExtension(const std::string& path);
 void WriteMesh(const std::string& path, const TriangleMesh& mesh);
 
 }  // namespace dimr::geometry

@@ -64,6 +64,8 @@ namespace detail {
 // Reading throws ParseError(path, reason); writing throws dimr::Error naming the path.
 std::vector<std::uint8_t> ReadFileBytes(const std::string& path);
 void WriteFileBytes(const std::string& path, std::string_view bytes);
+// The first 40 characters of `s` with non-printable bytes as \xNN (for error messages).
+std::string Printable(std::string_view s);
 }  // namespace detail
 
 }  // namespace dimr::geometry
