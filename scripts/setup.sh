@@ -14,7 +14,7 @@ PACKAGES=(
   libtf2-ros-dev libtf2-eigen-dev libtf2-sensor-msgs-dev tf2-tools
   libpcl-conversions-dev libpcl-dev liboctomap-dev
   # core libraries
-  libeigen3-dev libembree-dev nlohmann-json3-dev libyaml-cpp-dev libcli11-dev
+  libeigen3-dev libembree-dev nlohmann-json3-dev libyaml-cpp-dev libcli11-dev zlib1g-dev
   # LibTorch (CPU) + a fast BLAS for it (see docs/ros-build.md, BLAS section)
   libtorch-dev libopenblas0-openmp
   # tests and benchmarks

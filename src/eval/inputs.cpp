@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "dimr/eval/classes.h"
+#include "dimr/eval/npz.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/ply_io.h"
 
@@ -240,22 +241,70 @@ std::vector<PointsGt> ReadPcrGtScene(const std::string& path, const std::string&
   return PcrGtFromArrays(scene, cloud.points, s, i);
 }
 
-std::vector<PointsGt> LoadPcrGtFolder(const std::string& dir, std::vector<std::string>* scenes) {
+std::vector<PointsGt> ReadPcrGtNpz(const std::string& path, const std::string& scene) {
+  const auto arrays = ReadNpz(path);
+  auto get = [&](const char* name) -> const NpyArray& {
+    const auto it = arrays.find(name);
+    if (it == arrays.end()) throw ParseError(path, std::string("missing array '") + name + "'");
+    return it->second;
+  };
+  const NpyArray& v = get("mesh_vertices");
+  const NpyArray& sem = get("semantic_labels");
+  const NpyArray& inst = get("instance_labels");
+  if (v.shape.size() != 2 || v.shape[1] < 3) {
+    throw ParseError(path, "mesh_vertices must be N x 3 or N x 6");
+  }
+  const std::int64_t n = v.shape[0], cols = v.shape[1];
+  if (sem.size() != n || inst.size() != n) {
+    throw ParseError(path, "semantic_labels / instance_labels do not have one value per vertex");
+  }
+  std::vector<geometry::Vec3> pts(static_cast<std::size_t>(n));
+  std::vector<int> s(static_cast<std::size_t>(n)), in(static_cast<std::size_t>(n));
+  for (std::int64_t i = 0; i < n; ++i) {
+    pts[i] = geometry::Vec3(v.values[i * cols], v.values[i * cols + 1], v.values[i * cols + 2]);
+    s[i] = static_cast<int>(sem.values[i]);
+    in[i] = static_cast<int>(inst.values[i]);
+  }
+  return PcrGtFromArrays(scene, pts, s, in);
+}
+
+std::vector<PointsGt> LoadPcrGtFolder(const std::string& dir, std::vector<std::string>* scenes,
+                                      const std::string& scene_list) {
   std::error_code ec;
   if (!fs::is_directory(dir, ec)) throw ParseError(dir, "not a folder");
-  std::vector<std::string> files;
+  // scene -> file (PLY per scene, or <scene>/data.npz as the reference's processed data).
+  std::map<std::string, std::string> files;
   for (const auto& e : fs::directory_iterator(dir, ec)) {
     if (e.is_regular_file() && Lower(e.path().extension().string()) == ".ply") {
-      files.push_back(e.path().string());
+      files[e.path().stem().string()] = e.path().string();
+    } else if (e.is_directory() && fs::is_regular_file(e.path() / "data.npz", ec)) {
+      files[e.path().filename().string()] = (e.path() / "data.npz").string();
     }
   }
-  std::sort(files.begin(), files.end());
+  std::vector<std::string> wanted;
+  if (!scene_list.empty()) {
+    std::ifstream in(scene_list);
+    if (!in) throw ParseError(scene_list, "cannot open the scene list");
+    std::string line;
+    while (std::getline(in, line)) {
+      while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+      if (line.empty()) continue;
+      if (!files.count(line)) {
+        throw ParseError(scene_list, "scene '" + line + "' has no GT points in " + dir);
+      }
+      wanted.push_back(line);
+    }
+  } else {
+    for (const auto& [scene, file] : files) wanted.push_back(scene);
+  }
+  std::sort(wanted.begin(), wanted.end());
   std::vector<PointsGt> out;
   if (scenes) scenes->clear();
-  for (const std::string& f : files) {
-    const std::string scene = fs::path(f).stem().string();
+  for (const std::string& scene : wanted) {
     if (scenes) scenes->push_back(scene);
-    auto g = ReadPcrGtScene(f, scene);
+    const std::string& f = files.at(scene);
+    auto g = Lower(fs::path(f).extension().string()) == ".npz" ? ReadPcrGtNpz(f, scene)
+                                                               : ReadPcrGtScene(f, scene);
     out.insert(out.end(), std::make_move_iterator(g.begin()), std::make_move_iterator(g.end()));
   }
   return out;

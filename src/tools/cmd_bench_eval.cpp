@@ -158,7 +158,7 @@ void RunBench(const BenchArgs& a) {
   char name[96];
   int gt_count = 0, pred_count = 0;
   for (int s = 0; s < a.scenes; ++s) {
-    char scene[16];
+    char scene[32];
     std::snprintf(scene, sizeof scene, "scene%04d_00", s);
     in.pcr_scenes.push_back(scene);
     int k = 0;

@@ -20,6 +20,7 @@ struct EvalArgs {
   std::string pred_dir;
   std::string gt_dir;
   std::string gt_points_dir;
+  std::string scene_list;
   std::string metrics = "iou,cd,lfd";
   std::string protocol = "reference";
   std::string json_out;
@@ -40,7 +41,8 @@ void RunEval(const EvalArgs& a) {
   opt.lfd_cache_dir = a.lfd_cache;
   opt.progress = !a.quiet;
   if (opt.pcr && a.gt_points_dir.empty()) {
-    throw dimr::InvalidArgument("--metrics pcr needs --gt-points DIR (per-scene point PLYs)");
+    throw dimr::InvalidArgument(
+        "--metrics pcr needs --gt-points DIR (per-scene point PLYs or <scene>/data.npz)");
   }
   dimr::eval::EvalInputs in;
   in.preds = dimr::eval::ListMeshFolder(a.pred_dir);
@@ -49,7 +51,9 @@ void RunEval(const EvalArgs& a) {
     in.gt = dimr::eval::ListMeshFolder(a.gt_dir);
     if (in.gt.empty()) throw dimr::ParseError(a.gt_dir, "no GT meshes (*.ply) found");
   }
-  if (opt.pcr) in.pcr_gt = dimr::eval::LoadPcrGtFolder(a.gt_points_dir, &in.pcr_scenes);
+  if (opt.pcr) {
+    in.pcr_gt = dimr::eval::LoadPcrGtFolder(a.gt_points_dir, &in.pcr_scenes, a.scene_list);
+  }
   if (in.preds.empty()) {
     std::fprintf(stderr, "dimr eval: warning: no predictions in %s; every AP is 0\n",
                  a.pred_dir.c_str());
@@ -84,8 +88,11 @@ void SetupEval(CLI::App& app) {
                  "*.json files")
       ->required();
   app.add_option("--gt", args->gt_dir, "GT mesh folder: {scene}_{k}_{class}_1.ply");
+  app.add_option("--scene-list", args->scene_list,
+                 "PCR scenes, one per line (the reference's val.txt); default: all in --gt-points");
   app.add_option("--gt-points", args->gt_points_dir,
-                 "PCR GT folder: {scene}.ply point files with semantic_label and instance_label");
+                 "PCR GT folder: {scene}.ply point files (semantic_label, instance_label) or the "
+                 "reference's processed_data/{scene}/data.npz");
   app.add_option("--metrics", args->metrics, "Comma-separated subset of iou,cd,lfd,pcr (or all)")
       ->capture_default_str();
   app.add_option("--protocol", args->protocol,

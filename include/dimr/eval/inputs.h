@@ -68,7 +68,15 @@ std::vector<PointsGt> PcrGtFromArrays(const std::string& scene,
                                       const std::vector<geometry::Vec3>& points,
                                       const std::vector<int>& semantic_rfs,
                                       const std::vector<int>& instance_1based);
-// All `{scene}.ply` files of a folder; `scenes` receives the scene list (sorted).
-std::vector<PointsGt> LoadPcrGtFolder(const std::string& dir, std::vector<std::string>* scenes);
+// PCR GT instances of one scene from the reference's processed data
+// (`processed_data/<scene>/data.npz`: mesh_vertices N x 6 (or N x 3), semantic_labels,
+// instance_labels).
+std::vector<PointsGt> ReadPcrGtNpz(const std::string& path, const std::string& scene);
+// All `{scene}.ply` files of a folder, or (the reference layout) every `{scene}/data.npz`
+// below it; `scenes` receives the scene list (sorted). With `scene_list` (e.g. the
+// reference's val.txt, one scene per line) exactly those scenes are read, a missing one is
+// an error naming it.
+std::vector<PointsGt> LoadPcrGtFolder(const std::string& dir, std::vector<std::string>* scenes,
+                                      const std::string& scene_list = "");
 
 }  // namespace dimr::eval
