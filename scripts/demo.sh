@@ -9,12 +9,12 @@ set -eo pipefail
 REPO=$(cd "$(dirname "$0")/.." && pwd)
 cd "$REPO"
 "$REPO/scripts/setup.sh"
+# build/devel/bin/dimr is the catkin (ROS) build, which can also write rosbags.
 DIMR=build/devel/bin/dimr
-[ -x "$DIMR" ] || DIMR=build/bin/dimr
+BAGS="--bags"
+if [ ! -x "$DIMR" ]; then DIMR=build/bin/dimr; BAGS=""; fi
 OUT=out/demo
 mkdir -p "$OUT"
-BAGS=""
-if "$DIMR" synth --help | grep -q -- --bags; then BAGS="--bags"; fi
 "$DIMR" synth --scenes 2 --seed 7 --split val --out "$OUT/synth" --render $BAGS
 "$DIMR" bsp eval-cad --model models/bsp/bsp.pt --per-class 5 --seed 3 | tee "$OUT/bsp_eval.md"
 "$DIMR" bsp render --model models/bsp/bsp.pt --per-class 2 --out "$OUT/bsp_reconstructions.png" \
