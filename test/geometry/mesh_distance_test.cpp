@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "dimr/geometry/error.h"
+#include "geometry/test_meshes.h"
 
 namespace dimr::geometry {
 namespace {
@@ -80,14 +81,7 @@ TEST(MeshDistanceClosestPoint, DegenerateTriangles) {
   }
 }
 
-TriangleMesh UnitCube() {
-  TriangleMesh m;
-  for (int i = 0; i < 8; ++i) m.vertices.emplace_back(i & 1, (i >> 1) & 1, (i >> 2) & 1);
-  const int f[12][3] = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
-                        {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
-  for (auto& t : f) m.faces.emplace_back(t[0], t[1], t[2]);
-  return m;
-}
+using testing::UnitCube;
 
 TEST(MeshDistance, UnitCubeKnownDistances) {
   const MeshDistance md(UnitCube());
