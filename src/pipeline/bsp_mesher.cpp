@@ -147,4 +147,32 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
   return result;
 }
 
+Eigen::MatrixX3f BspGridCenters(int resolution) {
+  const int R = resolution;
+  if (R < 1) throw InvalidArgument("BspGridCenters: resolution must be >= 1");
+  Eigen::MatrixX3f centers(R * R * R, 3);
+  for (int z = 0; z < R; ++z) {
+    for (int y = 0; y < R; ++y) {
+      for (int x = 0; x < R; ++x) {
+        centers.row(x + R * (y + R * z)) << -1.0f + (2.0f * x + 1) / R, -1.0f + (2.0f * y + 1) / R,
+            -1.0f + (2.0f * z + 1) / R;
+      }
+    }
+  }
+  return centers;
+}
+
+double OccupancyIoU(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b) {
+  if (a.size() != b.size()) {
+    throw InvalidArgument("OccupancyIoU: sizes differ (" + std::to_string(a.size()) + " vs " +
+                          std::to_string(b.size()) + ")");
+  }
+  std::size_t inter = 0, uni = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) {
+    inter += a[i] && b[i];
+    uni += a[i] || b[i];
+  }
+  return uni ? static_cast<double>(inter) / static_cast<double>(uni) : 1.0;
+}
+
 }  // namespace dimr::pipeline

@@ -150,12 +150,7 @@ void RunEval(const EvalArgs& a) {
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   const auto convexes = model.ConvexPlanes();
   const int R = data.resolution;
-  Eigen::MatrixX3f centers(R * R * R, 3);
-  for (int k = 0; k < R; ++k)
-    for (int j = 0; j < R; ++j)
-      for (int i = 0; i < R; ++i)
-        centers.row(i + R * (j + R * k)) << -1.0f + (2.0f * i + 1) / R, -1.0f + (2.0f * j + 1) / R,
-            -1.0f + (2.0f * k + 1) / R;
+  const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
   std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
   std::vector<int> n(8, 0);
   if (!a.mesh_dir.empty()) std::filesystem::create_directories(a.mesh_dir);
@@ -166,14 +161,9 @@ void RunEval(const EvalArgs& a) {
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
     const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
-    std::size_t inter = 0, uni = 0;
-    for (std::size_t i = 0; i < occ.size(); ++i) {
-      inter += occ[i] && target[i];
-      uni += occ[i] || target[i];
-    }
     const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes);
     const int c = sample.cad_class;
-    iou_sum[c] += uni ? static_cast<double>(inter) / uni : 1.0;
+    iou_sum[c] += pipeline::OccupancyIoU(occ, target);
     faces_sum[c] += static_cast<double>(mesh.mesh.faces.size());
     convex_sum[c] += static_cast<double>(mesh.kept_convexes.size());
     ++n[c];

@@ -121,19 +121,9 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
     t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
   if (sample) {
     const int R = model.config().resolution;
-    Eigen::MatrixX3f centers(R * R * R, 3);
-    for (int z = 0; z < R; ++z)
-      for (int y = 0; y < R; ++y)
-        for (int x = 0; x < R; ++x)
-          centers.row(x + R * (y + R * z)) << -1.0f + (2.0f * x + 1) / R,
-              -1.0f + (2.0f * y + 1) / R, -1.0f + (2.0f * z + 1) / R;
-    const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
-    std::size_t inter = 0, uni = 0;
-    for (std::size_t i = 0; i < occ.size(); ++i) {
-      inter += occ[i] && sample->iou_grid[i];
-      uni += occ[i] || sample->iou_grid[i];
-    }
-    t.label = "bsp iou " + std::to_string(uni ? (100 * inter) / uni : 100);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R));
+    const double iou = pipeline::OccupancyIoU(occ, sample->iou_grid);
+    t.label = "bsp iou " + std::to_string(static_cast<int>(100 * iou));
   }
   return t;
 }
@@ -221,12 +211,7 @@ void RunEvalCad(const EvalCadArgs& a) {
   pipeline::BspSampleOptions opt;
   opt.resolution = model.config().resolution;
   const int R = opt.resolution;
-  Eigen::MatrixX3f centers(R * R * R, 3);
-  for (int z = 0; z < R; ++z)
-    for (int y = 0; y < R; ++y)
-      for (int x = 0; x < R; ++x)
-        centers.row(x + R * (y + R * z)) << -1.0f + (2.0f * x + 1) / R, -1.0f + (2.0f * y + 1) / R,
-            -1.0f + (2.0f * z + 1) / R;
+  const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
   std::printf(
       "| class | shapes | IoU@32^3 | Chamfer (x 1e-2) | empty meshes |\n|---|---|---|---|---|\n");
   double all_iou = 0, all_cd = 0;
@@ -242,12 +227,7 @@ void RunEvalCad(const EvalCadArgs& a) {
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
       const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
       const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
-      std::size_t inter = 0, uni = 0;
-      for (std::size_t k = 0; k < occ.size(); ++k) {
-        inter += occ[k] && sample.iou_grid[k];
-        uni += occ[k] || sample.iou_grid[k];
-      }
-      iou_sum += uni ? static_cast<double>(inter) / uni : 1.0;
+      iou_sum += pipeline::OccupancyIoU(occ, sample.iou_grid);
       ++n;
       const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes).mesh;
       if (decoded.faces.empty()) {

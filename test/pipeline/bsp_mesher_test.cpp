@@ -106,5 +106,17 @@ TEST(BspMesher, RejectsBadInput) {
   EXPECT_TRUE(ExtractBspMesh(Eigen::MatrixXf::Zero(0, 4), {}).mesh.faces.empty());
 }
 
+TEST(BspMesher, GridCentersAndOccupancyIoU) {
+  const Eigen::MatrixX3f c = BspGridCenters(4);
+  ASSERT_EQ(c.rows(), 64);
+  EXPECT_FLOAT_EQ(c(0, 0), -0.75f);
+  EXPECT_FLOAT_EQ(c(1, 0), -0.25f);  // x fastest
+  EXPECT_FLOAT_EQ(c(4, 1), -0.25f);  // then y
+  EXPECT_FLOAT_EQ(c(63, 2), 0.75f);
+  EXPECT_DOUBLE_EQ(OccupancyIoU({1, 1, 0, 0}, {1, 0, 1, 0}), 1.0 / 3.0);
+  EXPECT_DOUBLE_EQ(OccupancyIoU({0, 0}, {0, 0}), 1.0);
+  EXPECT_THROW(OccupancyIoU({1}, {1, 0}), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::pipeline

@@ -7,6 +7,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "dimr/geometry/polytope.h"
@@ -40,5 +41,11 @@ std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
                                        const Eigen::MatrixX3f& points,
                                        float inside_threshold = 0.01f);
+
+// Cell centres of an R^3 grid over [-1, 1]^3 (x fastest), the points the BSP occupancy and
+// the IoU@R^3 are evaluated at.
+Eigen::MatrixX3f BspGridCenters(int resolution);
+// Intersection over union of two occupancy vectors of equal length (1 if both are empty).
+double OccupancyIoU(const std::vector<std::uint8_t>& a, const std::vector<std::uint8_t>& b);
 
 }  // namespace dimr::pipeline
