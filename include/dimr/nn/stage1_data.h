@@ -1,0 +1,155 @@
+// Training / inference data of the stage-1 network (point-wise semantic, offset and heading),
+// independent of LibTorch. Spec: ../shared/reference/dimr-method.md sections 1, 2.4, 2.5, 8.5.
+//
+// A Stage1Sample is one room: metric points (z up), optional colours, per-point 25-class RFS
+// labels and instance ids, and per instance its class and (when it is matched to a CAD box)
+// the box heading. Differences from the reference, on purpose (docs/architecture.md section 4):
+//  - the network frame is origin-free: x-y centred on the cloud's bounding-box centre, z = 0 at
+//    the estimated floor (EstimateNetworkFrame), so a robot map's arbitrary origin does not
+//    matter; the input features are these network-frame coordinates (+ optional colour);
+//  - the heading-mirror bug (section 13) is fixed: the mirror formula is applied only when x is
+//    flipped.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace dimr::nn {
+
+constexpr int kStage1Classes = 25;  // RFS classes (network output order, data/labels.h)
+constexpr int kHeadingBins = 12;    // 30-degree bins centred at k * 30 degrees
+constexpr int kStage1Ignore = -100;
+
+// ---------------------------------------------------------------- heading (section 2.4)
+struct HeadingCode {
+  int bin = 0;           // 0..11
+  double residual = 0;   // normalised residual in [-1, 1): (angle - bin centre) / (pi / 12)
+};
+// Encodes a heading (radians, any value).
+HeadingCode EncodeHeading(double heading);
+// Decodes to (-pi, pi]: h = bin * pi/6 + residual * pi/12, minus 2 pi when above pi.
+double DecodeHeading(int bin, double residual);
+
+// ---------------------------------------------------------------- samples
+struct Stage1Instance {
+  int semantic = kStage1Ignore;  // RFS class of the instance (0..24) or kStage1Ignore
+  int cad_class = -1;            // 0..7, or -1 for non-CAD instances (walls, doors, clutter)
+  bool has_heading = false;      // matched to a CAD box (heading loss applies to its points)
+  double heading = 0;            // box heading (radians, about +z) when has_heading
+};
+
+struct Stage1Sample {
+  std::string name;
+  std::vector<Eigen::Vector3f> points;  // metres, gravity aligned (z up), any origin
+  std::vector<Eigen::Vector3f> colors;  // RGB in [0, 1], empty or one per point
+  std::vector<int> semantic;            // per point 0..24 or kStage1Ignore
+  std::vector<int> instance;            // per point index into `instances`, or -1
+  std::vector<Stage1Instance> instances;
+
+  // Throws dimr::InvalidArgument naming the sample and the field on inconsistent sizes,
+  // labels out of range, non-finite points or instance indices out of range.
+  void Validate() const;
+};
+
+// Binary cache of samples (magic "DIMRST1S", version, count, per sample the fields above).
+// Read checks every count against the file size and throws dimr::ParseError naming the file and
+// the sample on any inconsistency.
+void WriteStage1Samples(const std::string& path, const std::vector<Stage1Sample>& samples);
+std::vector<Stage1Sample> ReadStage1Samples(const std::string& path);
+
+// ---------------------------------------------------------------- network frame
+// p_net = p - origin, where origin = (x-y centre of the points' bounding box, floor height).
+struct NetworkFrame {
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();
+  float floor_z = 0;  // = origin.z()
+};
+// The floor is the lowest well-populated height: the lowest 2 cm z-bin holding at least 2 % of
+// the points (falls back to the 1st percentile of z for clouds without a dominant floor).
+// Throws dimr::InvalidArgument for an empty cloud or non-finite points.
+NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points);
+
+// ---------------------------------------------------------------- augmentation (section 1.3)
+struct AugmentConfig {
+  bool enabled = true;
+  double jitter = 0.1;      // m = I + jitter * N(0,1)^{3x3}
+  bool flip = true;         // x-flip with p = 0.5 (heading mirrored only then: bug fixed)
+  bool rotate = true;       // uniform rotation about z
+  bool elastic = true;      // two elastic passes on the voxel coordinates
+  double elastic_gran0 = 6, elastic_mag0 = 40;    // in voxels of scale 50 (rescaled to scale)
+  double elastic_gran1 = 20, elastic_mag1 = 160;  //
+  int max_points = 250000;  // random crop above this many points per scene
+  void Validate() const;    // throws dimr::InvalidArgument naming the field
+};
+
+// Applies the affine part (jitter, flip, rotation) to the points of a sample (network frame,
+// rotation about its origin) and the same rotation/mirror to the instance headings.
+// `affine` (optional) receives the 3x3 matrix m with p' = m * p (column vectors).
+void AugmentAffine(Stage1Sample* sample, const AugmentConfig& config, std::mt19937_64* rng,
+                   Eigen::Matrix3f* affine = nullptr);
+
+// Elastic distortion of scaled (voxel-unit) coordinates, in place (N x 3): Gaussian noise on a
+// coarse grid of spacing `gran` blurred by 3-tap box filters, trilinear interpolation,
+// displacement * `mag` (SparseConvNet style).
+void ElasticDistortion(std::vector<Eigen::Vector3f>* coords, double gran, double mag,
+                       std::mt19937_64* rng);
+
+// ---------------------------------------------------------------- batches
+struct Stage1InputConfig {
+  double scale = 20;      // voxels per metre (the reference: 50 = 2 cm)
+  bool use_rgb = false;   // input features = xyz (network frame) [+ rgb - 0.5]
+  int feature_channels() const { return use_rgb ? 6 : 3; }
+  void Validate() const;
+};
+
+// Several scenes flattened, ready for the network. N = total points.
+struct Stage1Batch {
+  int batch_size = 0;
+  int feature_channels = 3;
+  std::vector<std::string> names;
+  std::vector<std::int64_t> point_offsets;  // batch_size + 1, points of scene b: [o[b], o[b+1])
+  std::vector<float> points;                // N x 3, network frame after augmentation (metres)
+  std::vector<float> features;              // N x C
+  std::vector<std::int32_t> voxel;          // N x 4: (b, x, y, z) = floor(scale*p - min) per scene
+  std::vector<std::int64_t> semantic;       // N, 0..24 or kStage1Ignore
+  std::vector<std::int64_t> instance;       // N, batch-unique instance id or -1
+  std::vector<float> offset_target;         // N x 3: instance AABB centre - point (0 if none)
+  std::vector<std::uint8_t> offset_valid;   // N: point belongs to an instance
+  std::vector<std::int64_t> heading_bin;    // N: GT bin or kStage1Ignore (no CAD box)
+  std::vector<float> heading_residual;      // N: normalised GT residual (0 if none)
+  std::vector<NetworkFrame> frames;         // per scene: the frame that was subtracted
+  std::int64_t num_points() const { return static_cast<std::int64_t>(semantic.size()); }
+};
+
+// Builds a batch: network frame per scene, (optional) augmentation with `seed`, voxel coords,
+// features and all targets. augment == nullptr or !augment->enabled: no augmentation.
+Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
+                            const Stage1InputConfig& input, const AugmentConfig* augment,
+                            std::uint64_t seed);
+
+// Shuffled epochs of batches built by `threads` background threads (prefetching `prefetch`
+// batches). Deterministic: batch k of epoch e depends only on (seed, e, k), not on threads.
+class Stage1Loader {
+ public:
+  Stage1Loader(const std::vector<Stage1Sample>* samples, Stage1InputConfig input,
+               AugmentConfig augment, int batch_size, std::uint64_t seed, int threads = 1,
+               int prefetch = 4, bool drop_last = true);
+  ~Stage1Loader();
+  Stage1Loader(const Stage1Loader&) = delete;
+  Stage1Loader& operator=(const Stage1Loader&) = delete;
+
+  int batches_per_epoch() const;
+  // Starts (or restarts) producing the batches of `epoch` from batch index `first_batch` on.
+  void StartEpoch(int epoch, int first_batch = 0);
+  // Next batch of the current epoch in order; false when the epoch is exhausted.
+  bool Next(Stage1Batch* batch);
+
+ private:
+  struct State;
+  std::unique_ptr<State> state_;
+};
+
+}  // namespace dimr::nn

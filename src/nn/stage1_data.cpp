@@ -1,0 +1,845 @@
+// Stage-1 data layer: heading codes, sample cache, network frame, augmentation, batches and
+// the background loader. Plain C++ / Eigen on purpose (no LibTorch headers: compiles fast).
+#include "dimr/nn/stage1_data.h"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <condition_variable>
+#include <cstring>
+#include <exception>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <utility>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::nn {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kTwoPi = 2.0 * kPi;
+constexpr double kBinWidth = kPi / 6.0;
+constexpr double kHalfBin = kPi / 12.0;
+
+// ---------------------------------------------------------------- portable random numbers
+// std::normal_distribution / uniform_real_distribution differ between standard libraries; these
+// helpers use only the raw mt19937_64 output, so the same seed gives the same bytes everywhere.
+double Uniform01(std::mt19937_64* rng) {
+  return static_cast<double>((*rng)() >> 11) * (1.0 / 9007199254740992.0);  // [0, 1)
+}
+
+double Normal(std::mt19937_64* rng) {  // Box-Muller, one value per call
+  double u1 = Uniform01(rng);
+  const double u2 = Uniform01(rng);
+  if (u1 < 1e-300) u1 = 1e-300;
+  return std::sqrt(-2.0 * std::log(u1)) * std::cos(kTwoPi * u2);
+}
+
+std::uint64_t Mix(std::uint64_t x) {  // SplitMix64 finaliser
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+std::uint64_t HashSeed(std::uint64_t a, std::uint64_t b, std::uint64_t c = 0) {
+  return Mix(Mix(Mix(a) ^ (b + 0x632be59bd9b4e019ull)) ^ (c + 0x8cb92ba72f3d8dd7ull));
+}
+
+double WrapPi(double h) {  // to [-pi, pi)
+  double a = std::fmod(h + kPi, kTwoPi);
+  if (a < 0) a += kTwoPi;
+  if (a >= kTwoPi) a -= kTwoPi;
+  return a - kPi;
+}
+
+bool Finite(const Eigen::Vector3f& p) { return p.allFinite(); }
+
+// ---------------------------------------------------------------- binary little-endian I/O
+constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'S', 'T', '1', 'S'};
+constexpr std::uint32_t kVersion = 1;
+
+constexpr bool kBigEndian =
+#if defined(__BYTE_ORDER__) && defined(__ORDER_BIG_ENDIAN__) && \
+    __BYTE_ORDER__ == __ORDER_BIG_ENDIAN__
+    true;
+#else
+    false;
+#endif
+
+template <typename T>
+void SwapBytes(T* values, std::size_t n) {
+  if constexpr (kBigEndian && sizeof(T) > 1) {
+    for (std::size_t i = 0; i < n; ++i) {
+      auto* b = reinterpret_cast<unsigned char*>(values + i);
+      std::reverse(b, b + sizeof(T));
+    }
+  }
+}
+
+class Writer {
+ public:
+  explicit Writer(const std::string& path) : path_(path), f_(path, std::ios::binary) {
+    if (!f_) throw Error("cannot open '" + path + "' for writing");
+  }
+  template <typename T>
+  void Put(T v) {
+    PutArray(&v, 1);
+  }
+  template <typename T>
+  void PutArray(const T* v, std::size_t n) {
+    if (n == 0) return;
+    if constexpr (kBigEndian) {
+      std::vector<T> tmp(v, v + n);
+      SwapBytes(tmp.data(), n);
+      Raw(tmp.data(), n * sizeof(T));
+    } else {
+      Raw(v, n * sizeof(T));
+    }
+  }
+  void Raw(const void* data, std::size_t n) {
+    f_.write(static_cast<const char*>(data), static_cast<std::streamsize>(n));
+    if (!f_) throw Error("failed writing '" + path_ + "'");
+  }
+  void Close() {
+    f_.close();
+    if (!f_) throw Error("failed writing '" + path_ + "'");
+  }
+
+ private:
+  std::string path_;
+  std::ofstream f_;
+};
+
+class Reader {
+ public:
+  explicit Reader(const std::string& path) : path_(path), f_(path, std::ios::binary) {
+    if (!f_) throw ParseError(path, "cannot open file");
+    f_.seekg(0, std::ios::end);
+    const std::streamoff end = f_.tellg();
+    if (end < 0) throw ParseError(path, "cannot determine the file size");
+    size_ = static_cast<std::uint64_t>(end);
+    f_.seekg(0, std::ios::beg);
+  }
+  std::uint64_t Remaining() const { return size_ - pos_; }
+  // Checks that `count` elements of `elem` bytes fit into the rest of the file.
+  void Need(std::uint64_t count, std::uint64_t elem, const std::string& what) const {
+    if (elem != 0 && count > Remaining() / elem) {
+      throw ParseError(path_, what + ": needs " + std::to_string(count) + " x " +
+                                  std::to_string(elem) + " bytes, only " +
+                                  std::to_string(Remaining()) + " left (truncated or corrupt)");
+    }
+  }
+  template <typename T>
+  T Get(const std::string& what) {
+    T v;
+    GetArray(&v, 1, what);
+    return v;
+  }
+  template <typename T>
+  void GetArray(T* v, std::size_t n, const std::string& what) {
+    Need(n, sizeof(T), what);
+    if (n == 0) return;
+    f_.read(reinterpret_cast<char*>(v), static_cast<std::streamsize>(n * sizeof(T)));
+    if (!f_) throw ParseError(path_, what + ": read failed");
+    pos_ += n * sizeof(T);
+    SwapBytes(v, n);
+  }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::ifstream f_;
+  std::uint64_t size_ = 0;
+  std::uint64_t pos_ = 0;
+};
+
+void PutVec3(Writer* w, const std::vector<Eigen::Vector3f>& v) {
+  std::vector<float> flat(v.size() * 3);
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    for (int k = 0; k < 3; ++k) flat[3 * i + k] = v[i][k];
+  }
+  w->PutArray(flat.data(), flat.size());
+}
+
+void GetVec3(Reader* r, std::uint64_t n, std::vector<Eigen::Vector3f>* out,
+             const std::string& what) {
+  r->Need(n, 12, what);
+  std::vector<float> flat(n * 3);
+  r->GetArray(flat.data(), flat.size(), what);
+  out->resize(n);
+  for (std::size_t i = 0; i < n; ++i) (*out)[i] = {flat[3 * i], flat[3 * i + 1], flat[3 * i + 2]};
+}
+
+void PutInts(Writer* w, const std::vector<int>& v) {
+  std::vector<std::int32_t> tmp(v.begin(), v.end());
+  w->PutArray(tmp.data(), tmp.size());
+}
+
+void GetInts(Reader* r, std::uint64_t n, std::vector<int>* out, const std::string& what) {
+  r->Need(n, 4, what);
+  std::vector<std::int32_t> tmp(n);
+  r->GetArray(tmp.data(), tmp.size(), what);
+  out->assign(tmp.begin(), tmp.end());
+}
+
+// ---------------------------------------------------------------- elastic helpers
+// Zero-padded 3-tap box filter (1/3, 1/3, 1/3) along `axis` of a dense grid (x slowest).
+void Blur(std::vector<float>* g, const int dims[3], int axis) {
+  const std::ptrdiff_t stride[3] = {static_cast<std::ptrdiff_t>(dims[1]) * dims[2], dims[2], 1};
+  const std::vector<float> src = *g;
+  for (int x = 0; x < dims[0]; ++x) {
+    for (int y = 0; y < dims[1]; ++y) {
+      for (int z = 0; z < dims[2]; ++z) {
+        const int c[3] = {x, y, z};
+        const std::ptrdiff_t i = x * stride[0] + y * stride[1] + z;
+        float s = src[i];
+        if (c[axis] > 0) s += src[i - stride[axis]];
+        if (c[axis] + 1 < dims[axis]) s += src[i + stride[axis]];
+        (*g)[i] = s / 3.0f;
+      }
+    }
+  }
+}
+
+std::string SampleLabel(const Stage1Sample& s) { return "Stage1Sample '" + s.name + "'"; }
+
+}  // namespace
+
+// ---------------------------------------------------------------- heading
+HeadingCode EncodeHeading(double heading) {
+  HeadingCode code;
+  if (!std::isfinite(heading)) throw InvalidArgument("EncodeHeading: non-finite heading");
+  double a = std::fmod(heading, kTwoPi);
+  if (a < 0) a += kTwoPi;
+  double s = std::fmod(a + kHalfBin, kTwoPi);
+  if (s < 0) s += kTwoPi;
+  int k = static_cast<int>(std::floor(s / kBinWidth));
+  if (k >= kHeadingBins) {  // s rounded up to 2 pi
+    k = 0;
+    s -= kTwoPi;
+  }
+  k = std::max(0, k);
+  const double r = (s - (k * kBinWidth + kHalfBin)) / kHalfBin;
+  code.bin = k;
+  code.residual = std::min(std::max(r, -1.0), std::nextafter(1.0, 0.0));
+  return code;
+}
+
+double DecodeHeading(int bin, double residual) {
+  double h = bin * kBinWidth + residual * kHalfBin;
+  if (h > kPi) h -= kTwoPi;
+  return h;
+}
+
+// ---------------------------------------------------------------- samples
+void Stage1Sample::Validate() const {
+  const std::string who = SampleLabel(*this);
+  const std::size_t n = points.size();
+  if (!colors.empty() && colors.size() != n) {
+    throw InvalidArgument(who + ": colors has " + std::to_string(colors.size()) + " entries for " +
+                          std::to_string(n) + " points");
+  }
+  if (semantic.size() != n) {
+    throw InvalidArgument(who + ": semantic has " + std::to_string(semantic.size()) +
+                          " entries for " + std::to_string(n) + " points");
+  }
+  if (instance.size() != n) {
+    throw InvalidArgument(who + ": instance has " + std::to_string(instance.size()) +
+                          " entries for " + std::to_string(n) + " points");
+  }
+  const int num_inst = static_cast<int>(instances.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!Finite(points[i])) {
+      throw InvalidArgument(who + ": points[" + std::to_string(i) + "] is not finite");
+    }
+    if (!colors.empty() && !Finite(colors[i])) {
+      throw InvalidArgument(who + ": colors[" + std::to_string(i) + "] is not finite");
+    }
+    const int s = semantic[i];
+    if (s != kStage1Ignore && (s < 0 || s >= kStage1Classes)) {
+      throw InvalidArgument(who + ": semantic[" + std::to_string(i) + "] = " + std::to_string(s) +
+                            " is neither 0..24 nor kStage1Ignore");
+    }
+    if (instance[i] < -1 || instance[i] >= num_inst) {
+      throw InvalidArgument(who + ": instance[" + std::to_string(i) +
+                            "] = " + std::to_string(instance[i]) + " is out of range [-1, " +
+                            std::to_string(num_inst) + ")");
+    }
+  }
+  for (int k = 0; k < num_inst; ++k) {
+    const Stage1Instance& in = instances[k];
+    const std::string field = who + ": instances[" + std::to_string(k) + "]";
+    if (in.semantic != kStage1Ignore && (in.semantic < 0 || in.semantic >= kStage1Classes)) {
+      throw InvalidArgument(field + ".semantic = " + std::to_string(in.semantic) + " out of range");
+    }
+    if (in.cad_class < -1 || in.cad_class >= 8) {
+      throw InvalidArgument(field + ".cad_class = " + std::to_string(in.cad_class) +
+                            " out of range [-1, 8)");
+    }
+    if (!std::isfinite(in.heading)) throw InvalidArgument(field + ".heading is not finite");
+  }
+}
+
+void WriteStage1Samples(const std::string& path, const std::vector<Stage1Sample>& samples) {
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    try {
+      samples[i].Validate();
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument("WriteStage1Samples(" + path + "): sample " + std::to_string(i) + ": " +
+                            e.what());
+    }
+  }
+  Writer w(path);
+  w.Raw(kMagic, sizeof(kMagic));
+  w.Put(kVersion);
+  w.Put(static_cast<std::uint64_t>(samples.size()));
+  for (const Stage1Sample& s : samples) {
+    w.Put(static_cast<std::uint32_t>(s.name.size()));
+    w.Raw(s.name.data(), s.name.size());
+    w.Put(static_cast<std::uint64_t>(s.points.size()));
+    PutVec3(&w, s.points);
+    w.Put(static_cast<std::uint8_t>(s.colors.empty() ? 0 : 1));
+    PutVec3(&w, s.colors);
+    PutInts(&w, s.semantic);
+    PutInts(&w, s.instance);
+    w.Put(static_cast<std::uint64_t>(s.instances.size()));
+    for (const Stage1Instance& in : s.instances) {
+      w.Put(static_cast<std::int32_t>(in.semantic));
+      w.Put(static_cast<std::int32_t>(in.cad_class));
+      w.Put(static_cast<std::uint8_t>(in.has_heading ? 1 : 0));
+      w.Put(in.heading);
+    }
+  }
+  w.Close();
+}
+
+std::vector<Stage1Sample> ReadStage1Samples(const std::string& path) {
+  Reader r(path);
+  char magic[8];
+  r.GetArray(magic, 8, "magic");
+  if (std::memcmp(magic, kMagic, 8) != 0) {
+    throw ParseError(path, "not a dimr stage-1 sample cache (bad magic)");
+  }
+  const auto version = r.Get<std::uint32_t>("version");
+  if (version != kVersion) {
+    throw ParseError(path, "unsupported stage-1 cache version " + std::to_string(version));
+  }
+  const auto count = r.Get<std::uint64_t>("sample count");
+  // Smallest sample: name length + point count + colour flag + instance count = 21 bytes.
+  r.Need(count, 21, "sample count " + std::to_string(count));
+  std::vector<Stage1Sample> out(count);
+  for (std::uint64_t i = 0; i < count; ++i) {
+    const std::string where = "sample " + std::to_string(i);
+    Stage1Sample& s = out[i];
+    const auto name_len = r.Get<std::uint32_t>(where + ": name length");
+    s.name.resize(name_len);
+    r.GetArray(s.name.data(), name_len, where + ": name");
+    const auto n = r.Get<std::uint64_t>(where + ": point count");
+    r.Need(n, 12 + 4 + 4, where + ": " + std::to_string(n) + " points");
+    GetVec3(&r, n, &s.points, where + ": points");
+    const auto has_colors = r.Get<std::uint8_t>(where + ": colour flag");
+    if (has_colors > 1) {
+      throw ParseError(path, where + ": colour flag " + std::to_string(has_colors) + " is not 0/1");
+    }
+    if (has_colors) GetVec3(&r, n, &s.colors, where + ": colors");
+    GetInts(&r, n, &s.semantic, where + ": semantic");
+    GetInts(&r, n, &s.instance, where + ": instance");
+    const auto num_inst = r.Get<std::uint64_t>(where + ": instance count");
+    r.Need(num_inst, 17, where + ": " + std::to_string(num_inst) + " instances");
+    s.instances.resize(num_inst);
+    for (auto& in : s.instances) {
+      in.semantic = r.Get<std::int32_t>(where + ": instance semantic");
+      in.cad_class = r.Get<std::int32_t>(where + ": instance cad_class");
+      const auto has = r.Get<std::uint8_t>(where + ": instance heading flag");
+      if (has > 1) throw ParseError(path, where + ": heading flag is not 0/1");
+      in.has_heading = has != 0;
+      in.heading = r.Get<double>(where + ": instance heading");
+    }
+    try {
+      s.Validate();
+    } catch (const InvalidArgument& e) {
+      throw ParseError(path, where + ": " + e.what());
+    }
+  }
+  if (r.Remaining() != 0) {
+    throw ParseError(path, std::to_string(r.Remaining()) + " trailing bytes after the last sample");
+  }
+  return out;
+}
+
+// ---------------------------------------------------------------- network frame
+NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
+  if (points.empty()) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
+  Eigen::Vector3f lo = points[0], hi = points[0];
+  std::vector<float> z(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!Finite(points[i])) {
+      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
+    }
+    lo = lo.cwiseMin(points[i]);
+    hi = hi.cwiseMax(points[i]);
+    z[i] = points[i].z();
+  }
+  std::sort(z.begin(), z.end());
+  const std::size_t n = z.size();
+  const std::size_t need = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(0.02 * n)));
+  constexpr double kBin = 0.02;
+  const double z0 = z[0];
+  auto bin_of = [&](float v) { return static_cast<long long>(std::floor((v - z0) / kBin)); };
+  // Sorted sweep over the occupied 2 cm bins (no dense histogram: robust to far outliers).
+  double floor_z = z[std::min(n - 1, static_cast<std::size_t>(0.01 * (n - 1)))];
+  for (std::size_t begin = 0; begin < n;) {
+    const long long b = bin_of(z[begin]);
+    std::size_t end = begin;
+    while (end < n && bin_of(z[end]) == b) ++end;
+    if (end - begin >= need) {
+      // The floor: median of this bin and the next one (the floor's noise may straddle a
+      // bin boundary).
+      std::size_t stop = end;
+      while (stop < n && bin_of(z[stop]) <= b + 1) ++stop;
+      floor_z = z[begin + (stop - begin) / 2];
+      break;
+    }
+    begin = end;
+  }
+  NetworkFrame frame;
+  frame.origin = Eigen::Vector3f(0.5f * (lo.x() + hi.x()), 0.5f * (lo.y() + hi.y()),
+                                 static_cast<float>(floor_z));
+  frame.floor_z = frame.origin.z();
+  return frame;
+}
+
+// ---------------------------------------------------------------- configs
+void AugmentConfig::Validate() const {
+  auto fail = [](const std::string& what) { throw InvalidArgument("AugmentConfig." + what); };
+  if (!(jitter >= 0 && jitter < 10)) fail("jitter must be in [0, 10)");
+  if (!(elastic_gran0 > 0 && std::isfinite(elastic_gran0))) fail("elastic_gran0 must be > 0");
+  if (!(elastic_gran1 > 0 && std::isfinite(elastic_gran1))) fail("elastic_gran1 must be > 0");
+  if (!(elastic_mag0 >= 0 && std::isfinite(elastic_mag0))) fail("elastic_mag0 must be >= 0");
+  if (!(elastic_mag1 >= 0 && std::isfinite(elastic_mag1))) fail("elastic_mag1 must be >= 0");
+  if (max_points < 1) fail("max_points must be >= 1");
+}
+
+void Stage1InputConfig::Validate() const {
+  if (!(scale > 0 && scale <= 1000)) {
+    throw InvalidArgument("Stage1InputConfig.scale must be in (0, 1000] voxels per metre");
+  }
+}
+
+// ---------------------------------------------------------------- augmentation
+// Convention (column vectors): p' = m p with m = Rz(theta) * F * (I + jitter * N), F = diag(-1,
+// 1, 1) when flipped, else I. A heading h is the direction (cos h, sin h, 0) of the object's
+// front; the new heading is the direction of m (cos h, sin h, 0) in x-y, so the box still faces
+// the same physical front: with jitter = 0 that is exactly h + theta (no flip) or pi - h + theta
+// (flip), wrapped to [-pi, pi). Random draws, in this order: 9 normals, 1 uniform (flip), 1
+// uniform (theta); all are drawn even when a part is disabled so the stream stays aligned.
+void AugmentAffine(Stage1Sample* sample, const AugmentConfig& config, std::mt19937_64* rng,
+                   Eigen::Matrix3f* affine) {
+  config.Validate();
+  Eigen::Matrix3d jit = Eigen::Matrix3d::Identity();
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) jit(r, c) += config.jitter * Normal(rng);
+  }
+  const bool flip = Uniform01(rng) < 0.5 && config.flip;
+  const double theta = Uniform01(rng) * kTwoPi;
+  Eigen::Matrix3d m = jit;
+  if (flip) m.row(0) *= -1.0;
+  if (config.rotate) {
+    Eigen::Matrix3d rz;
+    rz << std::cos(theta), -std::sin(theta), 0, std::sin(theta), std::cos(theta), 0, 0, 0, 1;
+    m = rz * m;
+  }
+  const Eigen::Matrix3f mf = m.cast<float>();
+  for (auto& p : sample->points) p = mf * p;
+  for (auto& in : sample->instances) {
+    if (!in.has_heading) continue;
+    const Eigen::Vector3d f = m * Eigen::Vector3d(std::cos(in.heading), std::sin(in.heading), 0);
+    if (f.head<2>().norm() < 1e-9) {  // degenerate jitter: fall back to the rigid formula
+      in.heading = WrapPi((flip ? kPi - in.heading : in.heading) + (config.rotate ? theta : 0));
+    } else {
+      in.heading = WrapPi(std::atan2(f.y(), f.x()));
+    }
+  }
+  if (affine) *affine = mf;
+}
+
+void ElasticDistortion(std::vector<Eigen::Vector3f>* coords, double gran, double mag,
+                       std::mt19937_64* rng) {
+  if (!(gran > 0) || !std::isfinite(gran) || !std::isfinite(mag)) {
+    throw InvalidArgument("ElasticDistortion: gran must be > 0 and mag finite");
+  }
+  if (coords->empty()) return;
+  Eigen::Vector3f amax = Eigen::Vector3f::Zero();
+  for (std::size_t i = 0; i < coords->size(); ++i) {
+    if (!Finite((*coords)[i])) {
+      throw InvalidArgument("ElasticDistortion: coordinate " + std::to_string(i) +
+                            " is not finite");
+    }
+    amax = amax.cwiseMax((*coords)[i].cwiseAbs());
+  }
+  int dims[3];
+  double cells = 1;
+  for (int k = 0; k < 3; ++k) {
+    const double b = std::floor(amax[k] / gran) + 3;
+    cells *= b;
+    if (b > 1e6 || cells > 6.4e7) {
+      throw InvalidArgument("ElasticDistortion: noise grid too large (coordinates up to " +
+                            std::to_string(amax.maxCoeff()) + " with gran " + std::to_string(gran) +
+                            "); centre the coordinates first");
+    }
+    dims[k] = static_cast<int>(b);
+  }
+  const std::size_t total = static_cast<std::size_t>(dims[0]) * dims[1] * dims[2];
+  std::vector<float> noise[3];
+  for (auto& g : noise) {
+    g.resize(total);
+    for (auto& v : g) v = static_cast<float>(Normal(rng));
+    for (int pass = 0; pass < 2; ++pass) {
+      for (int axis = 0; axis < 3; ++axis) Blur(&g, dims, axis);
+    }
+  }
+  // Grid node j of axis k sits at -(b-1) gran + 2 gran j (SparseConvNet's linspace); trilinear
+  // interpolation, zero outside.
+  const std::ptrdiff_t stride[3] = {static_cast<std::ptrdiff_t>(dims[1]) * dims[2], dims[2], 1};
+  for (auto& p : *coords) {
+    int i0[3];
+    double t[3];
+    for (int k = 0; k < 3; ++k) {
+      const double u = (p[k] + (dims[k] - 1) * gran) / (2 * gran);
+      const double fl = std::floor(u);
+      i0[k] = static_cast<int>(fl);
+      t[k] = u - fl;
+    }
+    double d[3] = {0, 0, 0};
+    for (int corner = 0; corner < 8; ++corner) {
+      double w = 1;
+      std::ptrdiff_t idx = 0;
+      bool inside = true;
+      for (int k = 0; k < 3; ++k) {
+        const int bit = (corner >> k) & 1;
+        const int j = i0[k] + bit;
+        if (j < 0 || j >= dims[k]) inside = false;
+        w *= bit ? t[k] : 1 - t[k];
+        idx += j * stride[k];
+      }
+      if (!inside || w == 0) continue;
+      for (int c = 0; c < 3; ++c) d[c] += w * noise[c][idx];
+    }
+    for (int c = 0; c < 3; ++c) p[c] = static_cast<float>(p[c] + d[c] * mag);
+  }
+}
+
+// ---------------------------------------------------------------- batches
+namespace {
+
+// The reference's crop (section 1.3) in voxel units of `scale`: a cube of 512 * scale / 50
+// voxels whose x-y extent shrinks by 32 * scale / 50 until at most max_points remain. Returns the
+// kept point indices (ascending). `q` are scaled coordinates with min 0.
+std::vector<std::size_t> CropIndices(const std::vector<Eigen::Vector3f>& q, double scale,
+                                     int max_points, std::mt19937_64* rng) {
+  std::vector<std::size_t> keep(q.size());
+  for (std::size_t i = 0; i < q.size(); ++i) keep[i] = i;
+  if (static_cast<int>(q.size()) <= max_points) return keep;
+  Eigen::Vector3d lo = q[0].cast<double>(), hi = lo;
+  for (const auto& p : q) {
+    lo = lo.cwiseMin(p.cast<double>());
+    hi = hi.cwiseMax(p.cast<double>());
+  }
+  const Eigen::Vector3d range = hi - lo;
+  Eigen::Vector3d full = Eigen::Vector3d::Constant(512.0 * scale / 50.0);
+  const double shrink = 32.0 * scale / 50.0;
+  while (static_cast<int>(keep.size()) > max_points) {
+    Eigen::Vector3d offset;
+    for (int k = 0; k < 3; ++k) {
+      offset[k] = std::min(full[k] - range[k] + 0.001, 0.0) * Uniform01(rng) - lo[k];
+    }
+    keep.clear();
+    for (std::size_t i = 0; i < q.size(); ++i) {
+      const Eigen::Vector3d o = q[i].cast<double>() + offset;
+      if (o.minCoeff() >= 0 && o.x() < full.x() && o.y() < full.y() && o.z() < full.z()) {
+        keep.push_back(i);
+      }
+    }
+    full.x() -= shrink;
+    full.y() -= shrink;
+  }
+  return keep;
+}
+
+}  // namespace
+
+Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
+                            const Stage1InputConfig& input, const AugmentConfig* augment,
+                            std::uint64_t seed) {
+  input.Validate();
+  const bool aug = augment != nullptr && augment->enabled;
+  if (aug) augment->Validate();
+  Stage1Batch batch;
+  batch.batch_size = static_cast<int>(samples.size());
+  batch.feature_channels = input.feature_channels();
+  batch.point_offsets.push_back(0);
+  const int C = batch.feature_channels;
+  std::int64_t next_instance = 0;
+  for (int b = 0; b < batch.batch_size; ++b) {
+    const Stage1Sample* src = samples[b];
+    if (src == nullptr)
+      throw InvalidArgument("MakeStage1Batch: sample " + std::to_string(b) + " is null");
+    src->Validate();
+    if (src->points.empty()) {
+      throw InvalidArgument("MakeStage1Batch: " + SampleLabel(*src) + " has no points");
+    }
+    if (input.use_rgb && src->colors.empty()) {
+      throw InvalidArgument("MakeStage1Batch: use_rgb but " + SampleLabel(*src) +
+                            " has no colours");
+    }
+    const NetworkFrame frame = EstimateNetworkFrame(src->points);
+    batch.frames.push_back(frame);
+    batch.names.push_back(src->name);
+
+    Stage1Sample s;  // network frame, augmented: only what changes
+    s.points.resize(src->points.size());
+    for (std::size_t i = 0; i < s.points.size(); ++i) s.points[i] = src->points[i] - frame.origin;
+    s.instances = src->instances;
+    std::mt19937_64 rng(HashSeed(seed, static_cast<std::uint64_t>(b)));
+    if (aug) AugmentAffine(&s, *augment, &rng);
+
+    std::vector<Eigen::Vector3f> q(s.points.size());
+    for (std::size_t i = 0; i < q.size(); ++i) q[i] = s.points[i] * static_cast<float>(input.scale);
+    if (aug && augment->elastic) {
+      const double f = input.scale / 50.0;
+      ElasticDistortion(&q, augment->elastic_gran0 * f, augment->elastic_mag0 * f, &rng);
+      ElasticDistortion(&q, augment->elastic_gran1 * f, augment->elastic_mag1 * f, &rng);
+    }
+    std::vector<std::size_t> keep;
+    if (aug) {
+      keep = CropIndices(q, input.scale, augment->max_points, &rng);
+    } else {
+      keep.resize(q.size());
+      for (std::size_t i = 0; i < q.size(); ++i) keep[i] = i;
+    }
+    if (keep.empty()) {
+      throw InvalidArgument("MakeStage1Batch: crop of " + SampleLabel(*src) + " kept no points");
+    }
+    Eigen::Vector3f qmin = q[keep[0]];
+    for (std::size_t i : keep) qmin = qmin.cwiseMin(q[i]);
+
+    // Instances that survive, compacted in index order, and their AABBs (metric, augmented).
+    const int num_inst = static_cast<int>(s.instances.size());
+    std::vector<int> compact(num_inst, -1);
+    std::vector<Eigen::Vector3f> ilo(num_inst, Eigen::Vector3f::Constant(INFINITY));
+    std::vector<Eigen::Vector3f> ihi(num_inst, Eigen::Vector3f::Constant(-INFINITY));
+    for (std::size_t i : keep) {
+      const int k = src->instance[i];
+      if (k < 0) continue;
+      compact[k] = 0;
+      ilo[k] = ilo[k].cwiseMin(s.points[i]);
+      ihi[k] = ihi[k].cwiseMax(s.points[i]);
+    }
+    int kept_instances = 0;
+    for (int k = 0; k < num_inst; ++k) {
+      if (compact[k] == 0) compact[k] = kept_instances++;
+    }
+    std::vector<HeadingCode> codes(num_inst);
+    for (int k = 0; k < num_inst; ++k) {
+      if (s.instances[k].has_heading) codes[k] = EncodeHeading(s.instances[k].heading);
+    }
+
+    const std::size_t base = batch.semantic.size();
+    const std::size_t m = keep.size();
+    batch.points.resize((base + m) * 3);
+    batch.features.resize((base + m) * C);
+    batch.voxel.resize((base + m) * 4);
+    batch.semantic.resize(base + m);
+    batch.instance.resize(base + m);
+    batch.offset_target.resize((base + m) * 3, 0.0f);
+    batch.offset_valid.resize(base + m, 0);
+    batch.heading_bin.resize(base + m);
+    batch.heading_residual.resize(base + m, 0.0f);
+    for (std::size_t j = 0; j < m; ++j) {
+      const std::size_t i = keep[j];
+      const std::size_t o = base + j;
+      const Eigen::Vector3f& p = s.points[i];
+      for (int c = 0; c < 3; ++c) {
+        batch.points[3 * o + c] = p[c];
+        batch.features[C * o + c] = p[c];
+        const double v = std::floor(static_cast<double>(q[i][c]) - qmin[c]);
+        if (!(v >= 0 && v < 1 << 30)) {
+          throw InvalidArgument("MakeStage1Batch: " + SampleLabel(*src) +
+                                " spans too many voxels at scale " + std::to_string(input.scale));
+        }
+        batch.voxel[4 * o + 1 + c] = static_cast<std::int32_t>(v);
+      }
+      batch.voxel[4 * o] = b;
+      if (input.use_rgb) {
+        for (int c = 0; c < 3; ++c) batch.features[C * o + 3 + c] = src->colors[i][c] - 0.5f;
+      }
+      batch.semantic[o] = src->semantic[i];
+      const int k = src->instance[i];
+      batch.heading_bin[o] = kStage1Ignore;
+      if (k < 0) {
+        batch.instance[o] = -1;
+        continue;
+      }
+      batch.instance[o] = next_instance + compact[k];
+      const Eigen::Vector3f centre = 0.5f * (ilo[k] + ihi[k]);
+      for (int c = 0; c < 3; ++c) batch.offset_target[3 * o + c] = centre[c] - p[c];
+      batch.offset_valid[o] = 1;
+      if (s.instances[k].has_heading) {
+        batch.heading_bin[o] = codes[k].bin;
+        batch.heading_residual[o] = static_cast<float>(codes[k].residual);
+      }
+    }
+    next_instance += kept_instances;
+    batch.point_offsets.push_back(static_cast<std::int64_t>(base + m));
+  }
+  return batch;
+}
+
+// ---------------------------------------------------------------- loader
+struct Stage1Loader::State {
+  const std::vector<Stage1Sample>* samples = nullptr;
+  Stage1InputConfig input;
+  AugmentConfig augment;
+  int batch_size = 1;
+  std::uint64_t seed = 0;
+  int prefetch = 4;
+  bool drop_last = true;
+
+  std::mutex mu;
+  std::condition_variable cv;
+  bool stop = false;
+  bool started = false;
+  std::uint64_t generation = 0;  // bumped by StartEpoch: results of older epochs are dropped
+  int epoch = 0;
+  std::shared_ptr<const std::vector<int>> order;  // permutation of the current epoch
+  int next_claim = 0;                             // next batch index a worker builds
+  int next_deliver = 0;                           // next batch index Next() returns
+  int end = 0;                                    // batches in the epoch
+  struct Result {
+    Stage1Batch batch;
+    std::exception_ptr error;
+  };
+  std::map<int, Result> done;
+  std::vector<std::thread> workers;
+
+  int BatchesPerEpoch() const {
+    const int n = static_cast<int>(samples->size());
+    return drop_last ? n / batch_size : (n + batch_size - 1) / batch_size;
+  }
+
+  void Work() {
+    std::unique_lock<std::mutex> lock(mu);
+    for (;;) {
+      cv.wait(lock, [&] {
+        return stop || (started && next_claim < end && next_claim < next_deliver + prefetch);
+      });
+      if (stop) return;
+      const int k = next_claim++;
+      const std::uint64_t gen = generation;
+      const int e = epoch;
+      const auto perm = order;
+      lock.unlock();
+      Result result;
+      try {
+        const int n = static_cast<int>(perm->size());
+        std::vector<const Stage1Sample*> ptrs;
+        for (int i = k * batch_size; i < std::min(n, (k + 1) * batch_size); ++i) {
+          ptrs.push_back(&(*samples)[(*perm)[i]]);
+        }
+        result.batch = MakeStage1Batch(
+            ptrs, input, &augment,
+            HashSeed(seed, static_cast<std::uint64_t>(e) + 1, static_cast<std::uint64_t>(k)));
+      } catch (...) {
+        result.error = std::current_exception();
+      }
+      lock.lock();
+      if (gen == generation && !stop) {
+        done[k] = std::move(result);
+        cv.notify_all();
+      }
+    }
+  }
+};
+
+Stage1Loader::Stage1Loader(const std::vector<Stage1Sample>* samples, Stage1InputConfig input,
+                           AugmentConfig augment, int batch_size, std::uint64_t seed, int threads,
+                           int prefetch, bool drop_last)
+    : state_(std::make_unique<State>()) {
+  if (samples == nullptr) throw InvalidArgument("Stage1Loader: samples is null");
+  if (batch_size < 1) throw InvalidArgument("Stage1Loader: batch_size must be >= 1");
+  if (threads < 1 || threads > 256) throw InvalidArgument("Stage1Loader: threads must be 1..256");
+  if (prefetch < 1) throw InvalidArgument("Stage1Loader: prefetch must be >= 1");
+  input.Validate();
+  if (augment.enabled) augment.Validate();
+  State& s = *state_;
+  s.samples = samples;
+  s.input = input;
+  s.augment = augment;
+  s.batch_size = batch_size;
+  s.seed = seed;
+  s.prefetch = prefetch;
+  s.drop_last = drop_last;
+  for (int t = 0; t < threads; ++t) s.workers.emplace_back([this] { state_->Work(); });
+}
+
+Stage1Loader::~Stage1Loader() {
+  {
+    std::lock_guard<std::mutex> lock(state_->mu);
+    state_->stop = true;
+  }
+  state_->cv.notify_all();
+  for (auto& t : state_->workers) t.join();
+}
+
+int Stage1Loader::batches_per_epoch() const { return state_->BatchesPerEpoch(); }
+
+void Stage1Loader::StartEpoch(int epoch, int first_batch) {
+  State& s = *state_;
+  if (epoch < 0) throw InvalidArgument("Stage1Loader::StartEpoch: epoch must be >= 0");
+  const int total = s.BatchesPerEpoch();
+  if (first_batch < 0 || first_batch > total) {
+    throw InvalidArgument("Stage1Loader::StartEpoch: first_batch " + std::to_string(first_batch) +
+                          " outside [0, " + std::to_string(total) + "]");
+  }
+  auto perm = std::make_shared<std::vector<int>>(s.samples->size());
+  for (std::size_t i = 0; i < perm->size(); ++i) (*perm)[i] = static_cast<int>(i);
+  std::mt19937_64 rng(HashSeed(s.seed, static_cast<std::uint64_t>(epoch) + 1, 0x5eedull));
+  for (std::size_t i = perm->size(); i > 1; --i) {
+    std::swap((*perm)[i - 1], (*perm)[rng() % i]);
+  }
+  {
+    std::lock_guard<std::mutex> lock(s.mu);
+    ++s.generation;
+    s.started = true;
+    s.epoch = epoch;
+    s.order = std::move(perm);
+    s.next_claim = first_batch;
+    s.next_deliver = first_batch;
+    s.end = total;
+    s.done.clear();
+  }
+  s.cv.notify_all();
+}
+
+bool Stage1Loader::Next(Stage1Batch* batch) {
+  State& s = *state_;
+  std::unique_lock<std::mutex> lock(s.mu);
+  if (!s.started) throw InvalidArgument("Stage1Loader::Next: call StartEpoch first");
+  if (s.next_deliver >= s.end) return false;
+  const int k = s.next_deliver;
+  s.cv.wait(lock, [&] { return s.done.count(k) > 0; });
+  State::Result result = std::move(s.done[k]);
+  s.done.erase(k);
+  ++s.next_deliver;
+  lock.unlock();
+  s.cv.notify_all();
+  if (result.error) std::rethrow_exception(result.error);
+  *batch = std::move(result.batch);
+  return true;
+}
+
+}  // namespace dimr::nn
