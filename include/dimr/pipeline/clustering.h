@@ -1,0 +1,94 @@
+// Stage-1 clustering (dimr-method.md section 3): PointGroup's ball query + BFS on the CAD
+// points, single-scale (training, 3.4) or multi-scale (test, 3.5), greedy point-set-IoU NMS
+// (3.6) and the proposal heading vote (2.4, section 15 fact 3). LibTorch-free.
+//
+// Ball query and BFS follow the reference ops exactly: neighbours of j are the points k with
+// label[k] >= 0 (the reference queries the CAD points only) and |x_j - x_k|^2 < r^2 (strict,
+// float arithmetic as in the CUDA kernel), j itself included, taken in increasing index order
+// and truncated after max_neighbours hits. BFS visits seeds in index order and follows an
+// edge j -> k only if label[k] == label[j]; visited points are never revisited (also those of
+// a cluster that is then dropped for being too small). The query runs on a uniform voxel hash
+// (cell = radius), so a pass is O(N * density), not O(N^2).
+#pragma once
+
+#include <Eigen/Core>
+#include <utility>
+#include <vector>
+
+namespace dimr::pipeline {
+
+struct ClusterPass {
+  bool shifted = false;  // cluster points + predicted offsets instead of the raw points
+  double radius = 0.03;  // ball-query radius, metres (> 0)
+};
+
+struct ClusteringConfig {
+  // Test-time multi-scale clustering of the reference (section 3.5), in this order.
+  std::vector<ClusterPass> passes{{false, 0.03}, {true, 0.01}, {true, 0.03}, {true, 0.05}};
+  int min_points = 10;        // clusters with fewer points are dropped (>= keeps)
+  int max_neighbours = 1000;  // ball-query cap, neighbours scanned in index order (section 3.2)
+
+  // Throws dimr::InvalidArgument naming the bad field (passes empty, a radius not finite or
+  // <= 0, min_points < 1, max_neighbours < 1).
+  void Validate() const;
+  // Single scale for training (section 3.4): original r = 0.03, then shifted r = 0.03.
+  static ClusteringConfig Training();
+};
+
+// BFS clustering of one pass (section 3.3). Points with label < 0 are skipped (neither seeds
+// nor neighbours). Clusters come in seed order, each cluster's point indices in BFS visiting
+// order (neighbours of a popped point are pushed in increasing index order). Clusters with
+// fewer than min_points points are dropped. Throws dimr::InvalidArgument if the sizes differ,
+// a coordinate of a labelled point is not finite, radius is not finite or <= 0,
+// min_points < 1 or max_neighbours < 1.
+std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& points,
+                                          const std::vector<int>& labels, double radius,
+                                          int min_points, int max_neighbours = 1000);
+
+struct Proposal {
+  std::vector<int> points;  // point indices (BFS order), unique
+  int label = -1;           // the (common) label of its points
+  double score = 0;         // filled by the caller (stage 1: semantic score; stage 2: network)
+  int pass = 0;             // index of the ClusteringConfig pass that produced it
+};
+
+// All passes of `config` concatenated in pass order (shifted passes cluster points + offsets).
+// Throws dimr::InvalidArgument on size mismatches or an invalid config.
+std::vector<Proposal> MultiScaleClusters(const std::vector<Eigen::Vector3f>& points,
+                                         const std::vector<Eigen::Vector3f>& offsets,
+                                         const std::vector<int>& labels,
+                                         const ClusteringConfig& config);
+
+// Point-set IoU |A n B| / (|A| + |B| - |A n B|) of two proposals' point lists (unique
+// indices); 0 if both are empty.
+double PointIou(const std::vector<int>& a, const std::vector<int>& b);
+
+// Greedy class-agnostic NMS on point-set IoU (section 3.6): proposals sorted by score
+// descending (stable: equal scores keep their input order), keep the best, drop every
+// remaining proposal with IoU > iou_threshold, repeat. Returns the kept indices in score
+// order. Intersections are counted through a per-point inverted index: the cost is the sum
+// over kept proposals of the number of (point, proposal) incidences of their points, not
+// O(P^2 N). Throws dimr::InvalidArgument for a negative point index, a non-finite score or a
+// NaN threshold.
+std::vector<int> PointIouNms(const std::vector<Proposal>& proposals, double iou_threshold);
+
+// Number of heading bins of the stage-1 angle head (section 2.4; bin width pi/6).
+inline constexpr int kHeadingBins = 12;
+
+// Proposal heading (section 15 fact 3): k = argmax over the mean of the points' 12 bin
+// probabilities (first maximum on ties), plus the mean normalised residual of bin k times
+// pi/12, added to the bin centre k * pi/6; wrapped to (-pi, pi]. heading_prob and
+// heading_residual are N x 12 row-major per-point arrays. Throws dimr::InvalidArgument if
+// `points` is empty, an array's size is not a multiple of 12, the two differ, or an index is
+// out of range.
+double ProposalHeading(const std::vector<int>& points, const std::vector<float>& heading_prob,
+                       const std::vector<float>& heading_residual);
+
+// Encodes a heading into (bin, normalised residual) exactly as the training targets
+// (section 2.4): a = h mod 2pi, s = (a + pi/12) mod 2pi, k = floor(s / (pi/6)),
+// r = (s - k pi/6 - pi/12) / (pi/12) in [-1, 1).
+std::pair<int, double> EncodeHeading(double heading);
+// Inverse of EncodeHeading: k pi/6 + r pi/12, wrapped to (-pi, pi].
+double DecodeHeading(int bin, double residual);
+
+}  // namespace dimr::pipeline

@@ -1,0 +1,45 @@
+// Scored instances straight from the stage-1 predictions (no stage 2): multi-scale BFS
+// clustering of the CAD points, a semantic score per proposal, the reference's size filter
+// (points > 100) and point-IoU NMS at 0.3 (dimr-method.md sections 3.5, 3.6), and the
+// proposal heading vote (section 15 fact 3). Used by the stage-1 evaluation. LibTorch-free;
+// the pipeline layer does not include the data layer, so the caller passes the RFS -> CAD
+// table.
+#pragma once
+
+#include <Eigen/Core>
+#include <vector>
+
+#include "dimr/pipeline/clustering.h"
+
+namespace dimr::pipeline {
+
+struct Stage1InstanceConfig {
+  ClusteringConfig clustering;  // default: the test-time multi-scale passes
+  double nms_iou = 0.3;         // NMS drops proposals with IoU > nms_iou, in [0, 1]
+  int min_points = 100;         // a proposal is kept if it has > min_points points (>= 0)
+  // Throws dimr::InvalidArgument naming the bad field.
+  void Validate() const;
+};
+
+struct ScoredInstance {
+  std::vector<int> points;  // point indices, BFS order
+  int cad_class = -1;       // 0..7
+  double score = 0.0;       // mean semantic probability of the class (see below)
+  double heading = 0.0;     // radians, (-pi, pi]
+};
+
+// points, offsets: N predicted offsets (metres). cad_label: per point 0..7, or -1 for a
+// non-CAD point. semantic_prob: N x C softmax, row-major, C = rfs_to_cad.size() (25 for the
+// RFS label set). heading_prob / heading_residual: N x 12 row-major (bin probabilities,
+// normalised residuals). rfs_to_cad: CAD id per semantic class (any value outside 0..7 means
+// non-CAD). The score of a proposal of CAD class c is the mean over its points of the summed
+// probability of the semantic classes that map to c. Proposals with > min_points points go
+// through NMS; the kept ones are returned in descending score order. Throws
+// dimr::InvalidArgument on size mismatches or a cad_label outside [-1, 7].
+std::vector<ScoredInstance> ExtractStage1Instances(
+    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
+    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
+    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config);
+
+}  // namespace dimr::pipeline

@@ -1,0 +1,89 @@
+#include "dimr/pipeline/stage1_instances.h"
+
+#include <cmath>
+#include <string>
+#include <utility>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::pipeline {
+namespace {
+
+constexpr int kNumCadClasses = 8;
+
+void CheckSize(const char* name, std::size_t got, std::size_t want) {
+  if (got != want) {
+    throw InvalidArgument(std::string("ExtractStage1Instances: ") + name + " has " +
+                          std::to_string(got) + " values, expected " + std::to_string(want));
+  }
+}
+
+}  // namespace
+
+void Stage1InstanceConfig::Validate() const {
+  clustering.Validate();
+  if (!(nms_iou >= 0.0 && nms_iou <= 1.0)) {
+    throw InvalidArgument("Stage1InstanceConfig.nms_iou: must be in [0, 1], got " +
+                          std::to_string(nms_iou));
+  }
+  if (min_points < 0) {
+    throw InvalidArgument("Stage1InstanceConfig.min_points: must be >= 0, got " +
+                          std::to_string(min_points));
+  }
+}
+
+std::vector<ScoredInstance> ExtractStage1Instances(
+    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
+    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
+    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config) {
+  config.Validate();
+  const std::size_t n = points.size();
+  const std::size_t num_sem = rfs_to_cad.size();
+  if (num_sem == 0) throw InvalidArgument("ExtractStage1Instances: rfs_to_cad is empty");
+  CheckSize("offsets", offsets.size(), n);
+  CheckSize("cad_label", cad_label.size(), n);
+  CheckSize("semantic_prob", semantic_prob.size(), n * num_sem);
+  CheckSize("heading_prob", heading_prob.size(), n * kHeadingBins);
+  CheckSize("heading_residual", heading_residual.size(), n * kHeadingBins);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cad_label[i] < -1 || cad_label[i] >= kNumCadClasses) {
+      throw InvalidArgument("ExtractStage1Instances: cad_label[" + std::to_string(i) +
+                            "] = " + std::to_string(cad_label[i]) + " is not in [-1, 7]");
+    }
+  }
+
+  std::vector<Proposal> proposals =
+      MultiScaleClusters(points, offsets, cad_label, config.clustering);
+  // Size filter before NMS, as the reference (section 3.6, steps 2 and 3).
+  std::vector<Proposal> large;
+  for (auto& p : proposals) {
+    if (static_cast<int>(p.points.size()) <= config.min_points) continue;
+    double sum = 0.0;
+    for (int i : p.points) {
+      const float* row = semantic_prob.data() + static_cast<std::size_t>(i) * num_sem;
+      for (std::size_t c = 0; c < num_sem; ++c) {
+        if (rfs_to_cad[c] == p.label) sum += row[c];
+      }
+    }
+    p.score = sum / static_cast<double>(p.points.size());
+    if (!std::isfinite(p.score)) {
+      throw InvalidArgument("ExtractStage1Instances: semantic_prob has non-finite values");
+    }
+    large.push_back(std::move(p));
+  }
+  const std::vector<int> kept = PointIouNms(large, config.nms_iou);
+  std::vector<ScoredInstance> instances;
+  instances.reserve(kept.size());
+  for (int k : kept) {
+    ScoredInstance inst;
+    inst.cad_class = large[k].label;
+    inst.score = large[k].score;
+    inst.heading = ProposalHeading(large[k].points, heading_prob, heading_residual);
+    inst.points = std::move(large[k].points);
+    instances.push_back(std::move(inst));
+  }
+  return instances;
+}
+
+}  // namespace dimr::pipeline
