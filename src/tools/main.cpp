@@ -26,6 +26,7 @@ const std::map<std::string, std::string>& GroupDescriptions() {
       {"mesh", "Mesh and point-cloud utilities"},
       {"bsp", "BSP-CVAE shape autoencoder: data, evaluation, interpolation"},
       {"cad", "Procedural CAD library"},
+      {"stage1", "Stage-1 point-wise network: data preparation, inspection, evaluation"},
   };
   return kGroups;
 }
