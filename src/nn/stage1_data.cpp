@@ -230,8 +230,13 @@ HeadingCode EncodeHeading(double heading) {
 }
 
 double DecodeHeading(int bin, double residual) {
-  double h = bin * kBinWidth + residual * kHalfBin;
-  if (h > kPi) h -= kTwoPi;
+  // Predicted residuals are unbounded, so wrap fully (fmod), not just once.
+  double h = std::fmod(bin * kBinWidth + residual * kHalfBin, kTwoPi);
+  if (h > kPi) {
+    h -= kTwoPi;
+  } else if (h <= -kPi) {
+    h += kTwoPi;
+  }
   return h;
 }
 

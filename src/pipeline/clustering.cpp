@@ -10,8 +10,12 @@
 #include <unordered_map>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/stage1_data.h"
 
 namespace dimr::pipeline {
+
+using nn::DecodeHeading;
+using nn::kHeadingBins;
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
@@ -405,28 +409,6 @@ std::vector<int> PointIouNms(const std::vector<Proposal>& proposals, double iou_
     }
   }
   return kept;
-}
-
-std::pair<int, double> EncodeHeading(double heading) {
-  const double two_pi = 2.0 * kPi;
-  const double bin = kPi / 6.0;
-  double a = std::fmod(heading, two_pi);
-  if (a < 0) a += two_pi;
-  double s = std::fmod(a + kPi / 12.0, two_pi);
-  int k = static_cast<int>(std::floor(s / bin));
-  k = std::clamp(k, 0, kHeadingBins - 1);
-  const double r = (s - (k * bin + kPi / 12.0)) / (kPi / 12.0);
-  return {k, r};
-}
-
-double DecodeHeading(int bin, double residual) {
-  double h = std::fmod(bin * (kPi / 6.0) + residual * (kPi / 12.0), 2.0 * kPi);
-  if (h > kPi) {
-    h -= 2.0 * kPi;
-  } else if (h <= -kPi) {
-    h += 2.0 * kPi;
-  }
-  return h;
 }
 
 double ProposalHeading(const std::vector<int>& points, const std::vector<float>& heading_prob,

@@ -5,6 +5,7 @@
 #include <utility>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/stage1_data.h"
 
 namespace dimr::pipeline {
 namespace {
@@ -44,8 +45,8 @@ std::vector<ScoredInstance> ExtractStage1Instances(
   CheckSize("offsets", offsets.size(), n);
   CheckSize("cad_label", cad_label.size(), n);
   CheckSize("semantic_prob", semantic_prob.size(), n * num_sem);
-  CheckSize("heading_prob", heading_prob.size(), n * kHeadingBins);
-  CheckSize("heading_residual", heading_residual.size(), n * kHeadingBins);
+  CheckSize("heading_prob", heading_prob.size(), n * nn::kHeadingBins);
+  CheckSize("heading_residual", heading_residual.size(), n * nn::kHeadingBins);
   for (std::size_t i = 0; i < n; ++i) {
     if (cad_label[i] < -1 || cad_label[i] >= kNumCadClasses) {
       throw InvalidArgument("ExtractStage1Instances: cad_label[" + std::to_string(i) +

@@ -25,20 +25,6 @@ namespace {
 const char* kClassNames[8] = {"table",     "chair",   "bookshelf", "sofa",
                               "trash_bin", "cabinet", "display",   "bathtub"};
 
-std::string CommandLine(const CLI::App& app) {
-  std::string out = "dimr";
-  std::vector<const CLI::App*> chain;
-  for (const CLI::App* a = &app; a && a->get_parent(); a = a->get_parent()) chain.push_back(a);
-  std::reverse(chain.begin(), chain.end());
-  for (const CLI::App* a : chain) out += " " + a->get_name();
-  for (const CLI::Option* o : app.get_options()) {
-    if (o->count() == 0 || o->get_name() == "--help") continue;
-    out += " " + o->get_name();
-    for (const auto& r : o->results()) out += " " + r;
-  }
-  return out;
-}
-
 // ---------------------------------------------------------------- train
 struct TrainArgs {
   std::string train, val, out, config = "cpu", epochs = "60,30,0", device = "cpu";

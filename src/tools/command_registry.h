@@ -5,6 +5,7 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <functional>
 #include <string>
 #include <vector>
@@ -19,6 +20,21 @@ struct CommandSpec {
 };
 
 std::vector<CommandSpec>& Commands();
+
+// The command line that ran `app` ("dimr train bsp --train x ..."), for model cards.
+inline std::string CommandLine(const CLI::App& app) {
+  std::string out = "dimr";
+  std::vector<const CLI::App*> chain;
+  for (const CLI::App* a = &app; a && a->get_parent(); a = a->get_parent()) chain.push_back(a);
+  std::reverse(chain.begin(), chain.end());
+  for (const CLI::App* a : chain) out += " " + a->get_name();
+  for (const CLI::Option* o : app.get_options()) {
+    if (o->count() == 0 || o->get_name() == "--help") continue;
+    out += " " + o->get_name();
+    for (const auto& r : o->results()) out += " " + r;
+  }
+  return out;
+}
 
 struct Registrar {
   Registrar(std::string parent, std::string name, std::string description,

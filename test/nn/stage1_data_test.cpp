@@ -161,6 +161,11 @@ TEST(Stage1Data, HeadingRoundTrip) {
   EXPECT_EQ(EncodeHeading(kPi).bin, 6);
   EXPECT_EQ(EncodeHeading(kPi / 12 + 1e-6).bin, 1);
   EXPECT_NEAR(EncodeHeading(kPi / 12 + 1e-6).residual, -1, 1e-4);
+  // Predicted residuals are unbounded: decoding wraps fully into (-pi, pi].
+  EXPECT_NEAR(DecodeHeading(0, -13.0), -13.0 * kPi / 12 + 2 * kPi, 1e-12);
+  EXPECT_NEAR(DecodeHeading(6, 0.0), kPi, 1e-12);
+  EXPECT_NEAR(DecodeHeading(11, 30.0), std::remainder(11 * kPi / 6 + 30 * kPi / 12, 2 * kPi),
+              1e-12);
   EXPECT_EQ(EncodeHeading(kPi / 12 - 1e-6).bin, 0);
   EXPECT_NEAR(EncodeHeading(kPi / 12 - 1e-6).residual, 1, 1e-4);
   EXPECT_EQ(EncodeHeading(0.5).bin, 1);  // 0.5 rad = 28.6 deg

@@ -471,23 +471,6 @@ TEST(PointIouNms, MatchesBruteForceOnRandomProposalsAndIsFast) {
   EXPECT_EQ(PointIouNms(proposals, 0.3), ReferenceNms(proposals, 0.3));
 }
 
-TEST(ClusterHeading, EncodeDecodeRoundTrip) {
-  EXPECT_EQ(EncodeHeading(0.0).first, 0);
-  EXPECT_NEAR(EncodeHeading(0.0).second, 0.0, 1e-12);
-  EXPECT_EQ(EncodeHeading(kPi / 2 + kPi / 24).first, 3);
-  EXPECT_NEAR(EncodeHeading(kPi / 2 + kPi / 24).second, 0.5, 1e-12);
-  EXPECT_EQ(EncodeHeading(-kPi / 24).first, 0);  // -7.5 degrees -> bin 0, residual -0.5
-  EXPECT_NEAR(EncodeHeading(-kPi / 24).second, -0.5, 1e-12);
-  EXPECT_EQ(EncodeHeading(-kPi / 8).first, 11);  // -22.5 degrees -> bin 11 (330), +0.5
-  EXPECT_NEAR(EncodeHeading(-kPi / 8).second, 0.5, 1e-12);
-  for (double h = -3.1; h <= kPi; h += 0.05) {
-    const auto [k, r] = EncodeHeading(h);
-    EXPECT_GE(r, -1.0);
-    EXPECT_LT(r, 1.0);
-    EXPECT_NEAR(DecodeHeading(k, r), h, 1e-12) << h;
-  }
-}
-
 // Per-point rows: probabilities `prob` (12) and residuals `res` (12).
 struct HeadingRows {
   std::vector<float> prob, res;
@@ -534,8 +517,6 @@ TEST(ClusterHeading, WrapsToMinusPiPi) {
   EXPECT_NEAR(std::abs(h), kPi, 1e-12);
   EXPECT_GT(h, -kPi);
   EXPECT_LE(h, kPi);
-  EXPECT_NEAR(DecodeHeading(6, 0.0), kPi, 1e-12);
-  EXPECT_NEAR(DecodeHeading(0, -13.0), -13.0 * kPi / 12 + 2 * kPi, 1e-12);
 }
 
 // A scene of four boxes (three large, one of exactly 100 points) and an unlabelled floor,

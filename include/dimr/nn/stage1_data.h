@@ -26,12 +26,12 @@ constexpr int kStage1Ignore = -100;
 
 // ---------------------------------------------------------------- heading (section 2.4)
 struct HeadingCode {
-  int bin = 0;           // 0..11
-  double residual = 0;   // normalised residual in [-1, 1): (angle - bin centre) / (pi / 12)
+  int bin = 0;          // 0..11
+  double residual = 0;  // normalised residual in [-1, 1): (angle - bin centre) / (pi / 12)
 };
 // Encodes a heading (radians, any value).
 HeadingCode EncodeHeading(double heading);
-// Decodes to (-pi, pi]: h = bin * pi/6 + residual * pi/12, minus 2 pi when above pi.
+// Decodes to (-pi, pi]: h = bin * pi/6 + residual * pi/12, wrapped (any residual).
 double DecodeHeading(int bin, double residual);
 
 // ---------------------------------------------------------------- samples
@@ -75,14 +75,14 @@ NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points);
 // ---------------------------------------------------------------- augmentation (section 1.3)
 struct AugmentConfig {
   bool enabled = true;
-  double jitter = 0.1;      // m = I + jitter * N(0,1)^{3x3}
-  bool flip = true;         // x-flip with p = 0.5 (heading mirrored only then: bug fixed)
-  bool rotate = true;       // uniform rotation about z
-  bool elastic = true;      // two elastic passes on the voxel coordinates
+  double jitter = 0.1;  // m = I + jitter * N(0,1)^{3x3}
+  bool flip = true;     // x-flip with p = 0.5 (heading mirrored only then: bug fixed)
+  bool rotate = true;   // uniform rotation about z
+  bool elastic = true;  // two elastic passes on the voxel coordinates
   double elastic_gran0 = 6, elastic_mag0 = 40;    // in voxels of scale 50 (rescaled to scale)
   double elastic_gran1 = 20, elastic_mag1 = 160;  //
-  int max_points = 250000;  // random crop above this many points per scene
-  void Validate() const;    // throws dimr::InvalidArgument naming the field
+  int max_points = 250000;                        // random crop above this many points per scene
+  void Validate() const;                          // throws dimr::InvalidArgument naming the field
 };
 
 // Applies the affine part (jitter, flip, rotation) to the points of a sample (network frame,
@@ -99,8 +99,8 @@ void ElasticDistortion(std::vector<Eigen::Vector3f>* coords, double gran, double
 
 // ---------------------------------------------------------------- batches
 struct Stage1InputConfig {
-  double scale = 20;      // voxels per metre (the reference: 50 = 2 cm)
-  bool use_rgb = false;   // input features = xyz (network frame) [+ rgb - 0.5]
+  double scale = 20;     // voxels per metre (the reference: 50 = 2 cm)
+  bool use_rgb = false;  // input features = xyz (network frame) [+ rgb - 0.5]
   int feature_channels() const { return use_rgb ? 6 : 3; }
   void Validate() const;
 };

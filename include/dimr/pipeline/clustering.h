@@ -72,9 +72,6 @@ double PointIou(const std::vector<int>& a, const std::vector<int>& b);
 // NaN threshold.
 std::vector<int> PointIouNms(const std::vector<Proposal>& proposals, double iou_threshold);
 
-// Number of heading bins of the stage-1 angle head (section 2.4; bin width pi/6).
-inline constexpr int kHeadingBins = 12;
-
 // Proposal heading (section 15 fact 3): k = argmax over the mean of the points' 12 bin
 // probabilities (first maximum on ties), plus the mean normalised residual of bin k times
 // pi/12, added to the bin centre k * pi/6; wrapped to (-pi, pi]. heading_prob and
@@ -84,11 +81,6 @@ inline constexpr int kHeadingBins = 12;
 double ProposalHeading(const std::vector<int>& points, const std::vector<float>& heading_prob,
                        const std::vector<float>& heading_residual);
 
-// Encodes a heading into (bin, normalised residual) exactly as the training targets
-// (section 2.4): a = h mod 2pi, s = (a + pi/12) mod 2pi, k = floor(s / (pi/6)),
-// r = (s - k pi/6 - pi/12) / (pi/12) in [-1, 1).
-std::pair<int, double> EncodeHeading(double heading);
-// Inverse of EncodeHeading: k pi/6 + r pi/12, wrapped to (-pi, pi].
-double DecodeHeading(int bin, double residual);
+// (Heading codes themselves: nn::EncodeHeading / nn::DecodeHeading, dimr/nn/stage1_data.h.)
 
 }  // namespace dimr::pipeline

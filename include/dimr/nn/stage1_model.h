@@ -1,0 +1,120 @@
+// Stage 1 of DIMR: the point-wise network (sparse U-Net backbone + semantic (25), offset (3) and
+// 12-bin heading heads) with the reference losses, a trainer and inference. Spec:
+// ../shared/reference/dimr-method.md sections 1-2 and 10-11. LibTorch-free header (pimpl).
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "dimr/nn/stage1_data.h"
+
+namespace dimr::nn {
+
+struct Stage1Config {
+  Stage1InputConfig input;                                    // scale (voxels per metre), rgb
+  std::vector<std::int64_t> widths{16, 32, 48, 64, 96, 128};  // U-Net levels
+  int reps = 1;                                               // residual blocks per level and side
+  int num_classes = kStage1Classes;
+
+  // The reference network: scale 50 (2 cm), widths 32,32,64,64,96,96,128, reps 2.
+  static Stage1Config Reference();
+  // The CPU-sized default (scale 20 = 5 cm, widths 16..128 in 6 levels, reps 1): 2.1x faster
+  // to train than reps 2 on 2 cores (1.4 vs 3.0 s per 4-scene step), docs/models.md.
+  static Stage1Config CpuDefault() { return Stage1Config(); }
+  void Validate() const;         // throws dimr::InvalidArgument naming the key
+  std::string ToString() const;  // "scale=20 rgb=0 widths=16,32,48,64,96,128 reps=2 classes=25"
+  static Stage1Config FromString(const std::string& text);
+};
+
+struct Stage1TrainOptions {
+  int epochs = 40;
+  int batch_size = 4;           // scenes per step
+  double learning_rate = 1e-3;  // Adam; lr = max(lr0 * decay^((epoch-1)/epochs), 1e-6)
+  double lr_decay = 0.1;        // the reference's multiplier over the whole run
+  AugmentConfig augment;
+  std::uint64_t seed = 123;
+  int threads = 0;  // intra-op threads (0 = library default)
+  int loader_threads = 1;
+  std::string device = "cpu";   // "cpu" or "cuda"
+  std::string checkpoint_path;  // full training state (model, optimiser, position)
+  int checkpoint_every_steps = 200;
+  bool resume = true;             // continue from checkpoint_path when it exists
+  double max_minutes = 0;         // stop (after checkpointing) when exceeded; 0 = no limit
+  int validate_every_epochs = 1;  // calls the epoch callback every k epochs and at the end
+  bool progress = true;           // progress bar with the loss terms on stderr
+};
+
+struct Stage1LossTerms {
+  double total = 0, semantic = 0, offset_norm = 0, offset_dir = 0, heading_cls = 0, heading_res = 0;
+};
+
+struct Stage1StepLog {
+  int epoch = 0;  // 1-based
+  int step = 0;   // global, 1-based
+  double lr = 0;
+  Stage1LossTerms loss;
+  double seconds = 0;  // wall time since the start (this process)
+};
+
+// Per-point results of one scene (in the input point order).
+struct Stage1Output {
+  std::vector<int> semantic;             // argmax RFS class
+  std::vector<float> semantic_prob;      // N x 25 softmax
+  std::vector<Eigen::Vector3f> offsets;  // predicted shift to the instance centre (m)
+  std::vector<float> heading_prob;       // N x 12 softmax of the bin logits
+  std::vector<float> heading_residual;   // N x 12 normalised residuals
+  std::vector<float> features;           // N x widths[0] point features (if requested)
+  NetworkFrame frame;                    // the frame the network saw
+};
+
+struct Stage1Timing {
+  double voxelize_ms = 0, unet_ms = 0, heads_ms = 0;
+};
+
+// Intra-op threads of the network (at::set_num_threads), for torch-free callers.
+void SetIntraOpThreads(int threads);
+
+class Stage1Model {
+ public:
+  explicit Stage1Model(const Stage1Config& config = Stage1Config(), std::uint64_t seed = 1);
+  ~Stage1Model();
+  Stage1Model(Stage1Model&&) noexcept;
+  Stage1Model& operator=(Stage1Model&&) noexcept;
+
+  const Stage1Config& config() const;
+  std::int64_t NumParameters() const;
+
+  // Weights + config (float16 with `half`); Load checks config, names and shapes and throws
+  // dimr::ParseError naming the file for truncated / corrupt / mismatching files.
+  void Save(const std::string& path, bool half = false) const;
+  static Stage1Model Load(const std::string& path);
+
+  // Trains on `train`. `log` is called every step; `on_epoch` every validate_every_epochs epochs
+  // (and after the last) with the model in eval mode; the metrics it returns are printed with
+  // the epoch (the caller logs them). Returns the step logs of this call.
+  using EpochCallback =
+      std::function<std::map<std::string, double>(int epoch, const Stage1Model& model)>;
+  std::vector<Stage1StepLog> Train(const std::vector<Stage1Sample>& train,
+                                   const Stage1TrainOptions& options,
+                                   const std::function<void(const Stage1StepLog&)>& log = {},
+                                   const EpochCallback& on_epoch = {});
+
+  // Loss terms of one batch (eval-mode BN, no gradient) - for tests and validation.
+  Stage1LossTerms EvaluateLoss(const Stage1Batch& batch) const;
+
+  // Inference on one scene (eval mode). Points only are read from `sample` (labels ignored).
+  // Throws dimr::InvalidArgument for an empty cloud or non-finite points.
+  Stage1Output Predict(const Stage1Sample& sample, bool with_features = false,
+                       Stage1Timing* timing = nullptr) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dimr::nn

@@ -1,0 +1,650 @@
+// Stage-1 point-wise network of DIMR in LibTorch (include/dimr/nn/stage1_model.h, spec
+// dimr-method.md sections 2.3-2.5 and 11).
+//
+// Deviations from the reference, all deliberate (docs/models.md, "Stage 1"):
+//  - Input features are network-frame coordinates (x-y centred, floor at z = 0; stage1_data.h),
+//    not absolute ScanNet coordinates.
+//  - Training does not zero the heading logits of points *predicted* as non-CAD (the reference
+//    does, which gives those points a constant log 12 and no gradient early in training); the
+//    heading loss covers every point of a GT CAD instance. (At inference the heading of non-CAD
+//    points is never used, so there is nothing to zero.)
+//  - The learning rate decays continuously per step: lr0 * decay^(step / total_steps).
+#include "dimr/nn/stage1_model.h"
+
+#include <torch/torch.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "dimr/geometry/error.h"
+#include "dimr/nn/sparse_ops.h"
+#include "dimr/nn/sparse_unet.h"
+
+namespace dimr::nn {
+
+// ---------------------------------------------------------------------------------------
+// Config
+// ---------------------------------------------------------------------------------------
+
+Stage1Config Stage1Config::Reference() {
+  Stage1Config c;
+  c.input.scale = 50;
+  c.widths = {32, 32, 64, 64, 96, 96, 128};
+  c.reps = 2;
+  return c;
+}
+
+void Stage1Config::Validate() const {
+  input.Validate();
+  if (widths.empty()) throw InvalidArgument("stage1 config: 'widths' is empty");
+  for (std::size_t i = 0; i < widths.size(); ++i) {
+    if (widths[i] < 1 || widths[i] > 4096) {
+      throw InvalidArgument("stage1 config: widths[" + std::to_string(i) +
+                            "] = " + std::to_string(widths[i]) + " (1..4096 required)");
+    }
+  }
+  if (widths.size() > 12) throw InvalidArgument("stage1 config: more than 12 'widths' levels");
+  if (reps < 1 || reps > 8) {
+    throw InvalidArgument("stage1 config: 'reps' = " + std::to_string(reps) + " (1..8 required)");
+  }
+  if (num_classes < 2 || num_classes > 1000) {
+    throw InvalidArgument("stage1 config: 'classes' = " + std::to_string(num_classes));
+  }
+}
+
+std::string Stage1Config::ToString() const {
+  std::ostringstream s;
+  s << "scale=" << input.scale << " rgb=" << (input.use_rgb ? 1 : 0) << " widths=";
+  for (std::size_t i = 0; i < widths.size(); ++i) s << (i ? "," : "") << widths[i];
+  s << " reps=" << reps << " classes=" << num_classes;
+  return s.str();
+}
+
+Stage1Config Stage1Config::FromString(const std::string& text) {
+  Stage1Config c;
+  std::istringstream in(text);
+  std::string item;
+  bool have_widths = false;
+  while (in >> item) {
+    const auto eq = item.find('=');
+    if (eq == std::string::npos) {
+      throw InvalidArgument("stage1 config: '" + item + "' is not key=value");
+    }
+    const std::string key = item.substr(0, eq), value = item.substr(eq + 1);
+    try {
+      std::size_t used = 0;
+      if (key == "scale") {
+        c.input.scale = std::stod(value, &used);
+      } else if (key == "rgb") {
+        c.input.use_rgb = std::stoi(value, &used) != 0;
+      } else if (key == "reps") {
+        c.reps = std::stoi(value, &used);
+      } else if (key == "classes") {
+        c.num_classes = std::stoi(value, &used);
+      } else if (key == "widths") {
+        c.widths.clear();
+        std::istringstream ws(value);
+        std::string w;
+        while (std::getline(ws, w, ',')) {
+          std::size_t u = 0;
+          c.widths.push_back(std::stoll(w, &u));
+          if (u != w.size()) throw std::invalid_argument(w);
+        }
+        used = value.size();
+        have_widths = true;
+      } else {
+        throw InvalidArgument("stage1 config: unknown key '" + key + "'");
+      }
+      if (used != value.size()) throw std::invalid_argument(value);
+    } catch (const std::logic_error&) {
+      throw InvalidArgument("stage1 config: bad value '" + value + "' for '" + key + "'");
+    }
+  }
+  if (!have_widths && text.find("widths") != std::string::npos) {
+    throw InvalidArgument("stage1 config: bad 'widths'");
+  }
+  c.Validate();
+  return c;
+}
+
+// ---------------------------------------------------------------------------------------
+// Network
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+torch::nn::BatchNorm1d HeadNorm(int64_t c) {
+  return torch::nn::BatchNorm1d(torch::nn::BatchNorm1dOptions(c).eps(1e-4).momentum(0.1));
+}
+
+struct HeadOutput {
+  torch::Tensor semantic;  // [N, 25] logits
+  torch::Tensor offset;    // [N, 3]
+  torch::Tensor heading;   // [N, 24]: 12 bin logits, 12 normalised residuals
+  torch::Tensor features;  // [N, C0]
+};
+
+class Stage1NetImpl : public torch::nn::Module {
+ public:
+  explicit Stage1NetImpl(const Stage1Config& c) {
+    SparseUNetConfig u;
+    u.in_channels = c.input.feature_channels();
+    u.widths = c.widths;
+    u.reps = c.reps;
+    backbone = register_module("backbone", SparseUNet(u));
+    const int64_t c0 = c.widths[0];
+    linear = register_module("linear", torch::nn::Linear(c0, c.num_classes));
+    offset = register_module(
+        "offset", torch::nn::Sequential(
+                      torch::nn::Linear(c0, 16), HeadNorm(16),
+                      torch::nn::LeakyReLU(torch::nn::LeakyReLUOptions().negative_slope(0.01))));
+    offset_linear = register_module("offset_linear", torch::nn::Linear(16, 3));
+    angle = register_module(
+        "angle", torch::nn::Sequential(
+                     torch::nn::Linear(c0, c0), HeadNorm(c0),
+                     torch::nn::LeakyReLU(torch::nn::LeakyReLUOptions().negative_slope(0.01))));
+    angle_linear = register_module("angle_linear", torch::nn::Linear(c0, 2 * kHeadingBins));
+  }
+
+  // Voxel features -> point features.
+  torch::Tensor Backbone(const SparseTensor& x, const VoxelMap& map) {
+    SparseTensor y = backbone->forward(x);
+    return Devoxelize(y.features(), map);
+  }
+  HeadOutput Heads(const torch::Tensor& f) {
+    HeadOutput h;
+    h.features = f;
+    h.semantic = linear->forward(f);
+    h.offset = offset_linear->forward(offset->forward(f));
+    h.heading = angle_linear->forward(angle->forward(f));
+    return h;
+  }
+
+  SparseUNet backbone{nullptr};
+  torch::nn::Linear linear{nullptr}, offset_linear{nullptr}, angle_linear{nullptr};
+  torch::nn::Sequential offset{nullptr}, angle{nullptr};
+};
+TORCH_MODULE(Stage1Net);
+
+template <typename T>
+torch::Tensor FromVector(const std::vector<T>& v, torch::Dtype dtype, std::vector<int64_t> shape) {
+  if (v.empty()) return torch::zeros(shape, torch::TensorOptions().dtype(dtype));
+  return torch::from_blob(const_cast<T*>(v.data()), shape, torch::TensorOptions().dtype(dtype))
+      .clone();
+}
+
+struct BatchTensors {
+  torch::Tensor voxel, features, semantic, offset_target, offset_valid, heading_bin,
+      heading_residual;
+  int64_t batch_size = 0;
+};
+
+BatchTensors ToTensors(const Stage1Batch& b, const torch::Device& device) {
+  const int64_t n = b.num_points();
+  if (n == 0) throw InvalidArgument("stage1: empty batch (no points)");
+  if (static_cast<int64_t>(b.voxel.size()) != 4 * n ||
+      static_cast<int64_t>(b.features.size()) != n * b.feature_channels ||
+      static_cast<int64_t>(b.offset_target.size()) != 3 * n ||
+      static_cast<int64_t>(b.offset_valid.size()) != n ||
+      static_cast<int64_t>(b.heading_bin.size()) != n ||
+      static_cast<int64_t>(b.heading_residual.size()) != n) {
+    throw InvalidArgument("stage1: inconsistent batch array sizes");
+  }
+  BatchTensors t;
+  t.batch_size = b.batch_size;
+  t.voxel = FromVector(b.voxel, torch::kInt32, {n, 4});
+  t.features = FromVector(b.features, torch::kFloat32, {n, b.feature_channels}).to(device);
+  t.semantic = FromVector(b.semantic, torch::kInt64, {n}).to(device);
+  t.offset_target = FromVector(b.offset_target, torch::kFloat32, {n, 3}).to(device);
+  t.offset_valid = FromVector(b.offset_valid, torch::kUInt8, {n}).to(torch::kFloat32).to(device);
+  t.heading_bin = FromVector(b.heading_bin, torch::kInt64, {n}).to(device);
+  t.heading_residual = FromVector(b.heading_residual, torch::kFloat32, {n}).to(device);
+  return t;
+}
+
+struct LossOut {
+  torch::Tensor total;
+  Stage1LossTerms terms;
+};
+
+LossOut ComputeLoss(const HeadOutput& h, const BatchTensors& t) {
+  LossOut out;
+  // Semantic cross-entropy, ignore -100, mean over the labelled points.
+  torch::Tensor sem;
+  if ((t.semantic != kStage1Ignore).any().item<bool>()) {
+    sem = torch::nn::functional::cross_entropy(
+        h.semantic, t.semantic,
+        torch::nn::functional::CrossEntropyFuncOptions().ignore_index(kStage1Ignore));
+  } else {
+    sem = h.semantic.sum() * 0;
+  }
+  // Offsets: L1 norm and negative cosine over points of any instance.
+  const torch::Tensor valid = t.offset_valid;
+  const torch::Tensor denom = valid.sum() + 1e-6;
+  const torch::Tensor off_norm = ((h.offset - t.offset_target).abs().sum(1) * valid).sum() / denom;
+  const torch::Tensor pred_dir = h.offset / (h.offset.norm(2, 1, true) + 1e-8);
+  const torch::Tensor gt_dir = t.offset_target / (t.offset_target.norm(2, 1, true) + 1e-8);
+  const torch::Tensor off_dir = -((pred_dir * gt_dir).sum(1) * valid).sum() / denom;
+  // Heading: bin CE + smooth-L1 residual of the GT bin, over points of CAD-box instances.
+  const torch::Tensor ang_valid = (t.heading_bin != kStage1Ignore).to(torch::kFloat32);
+  const torch::Tensor ang_denom = ang_valid.sum() + 1e-6;
+  const torch::Tensor bins = t.heading_bin.clamp_min(0);
+  const torch::Tensor logits = h.heading.slice(1, 0, kHeadingBins);
+  const torch::Tensor residuals = h.heading.slice(1, kHeadingBins, 2 * kHeadingBins);
+  const torch::Tensor ce = torch::nn::functional::cross_entropy(
+      logits, bins, torch::nn::functional::CrossEntropyFuncOptions().reduction(torch::kNone));
+  const torch::Tensor ang_cls = (ce * ang_valid).sum() / ang_denom;
+  const torch::Tensor res = residuals.gather(1, bins.unsqueeze(1)).squeeze(1);
+  const torch::Tensor sl1 = torch::nn::functional::smooth_l1_loss(
+      res, t.heading_residual,
+      torch::nn::functional::SmoothL1LossFuncOptions().reduction(torch::kNone));
+  const torch::Tensor ang_res = (sl1 * ang_valid).sum() / ang_denom;
+  out.total = sem + off_norm + off_dir + ang_cls + ang_res;
+  out.terms.semantic = sem.item<double>();
+  out.terms.offset_norm = off_norm.item<double>();
+  out.terms.offset_dir = off_dir.item<double>();
+  out.terms.heading_cls = ang_cls.item<double>();
+  out.terms.heading_res = ang_res.item<double>();
+  out.terms.total = out.total.item<double>();
+  return out;
+}
+
+double Ms(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------
+// Stage1Model
+// ---------------------------------------------------------------------------------------
+
+void SetIntraOpThreads(int threads) {
+  if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
+  torch::set_num_threads(threads);
+}
+
+struct Stage1Model::Impl {
+  Stage1Config config;
+  Stage1Net net{nullptr};
+  torch::Device device = torch::kCPU;
+  explicit Impl(const Stage1Config& c) : config(c), net(c) {}
+
+  HeadOutput Forward(const BatchTensors& t, Stage1Timing* timing) {
+    const auto t0 = std::chrono::steady_clock::now();
+    Voxelized v = Voxelize(t.voxel, t.features, t.batch_size);
+    const auto t1 = std::chrono::steady_clock::now();
+    torch::Tensor f = net->Backbone(v.tensor, v.map);
+    const auto t2 = std::chrono::steady_clock::now();
+    HeadOutput h = net->Heads(f);
+    if (timing) {
+      const auto t3 = std::chrono::steady_clock::now();
+      timing->voxelize_ms = Ms(t0, t1);
+      timing->unet_ms = Ms(t1, t2);
+      timing->heads_ms = Ms(t2, t3);
+    }
+    return h;
+  }
+};
+
+Stage1Model::Stage1Model(const Stage1Config& config, std::uint64_t seed) {
+  config.Validate();
+  torch::manual_seed(seed);
+  impl_ = std::make_unique<Impl>(config);
+  impl_->net->eval();
+}
+Stage1Model::~Stage1Model() = default;
+Stage1Model::Stage1Model(Stage1Model&&) noexcept = default;
+Stage1Model& Stage1Model::operator=(Stage1Model&&) noexcept = default;
+
+const Stage1Config& Stage1Model::config() const { return impl_->config; }
+
+std::int64_t Stage1Model::NumParameters() const {
+  std::int64_t n = 0;
+  for (const auto& p : impl_->net->parameters()) n += p.numel();
+  return n;
+}
+
+void Stage1Model::Save(const std::string& path, bool half) const {
+  torch::serialize::OutputArchive archive;
+  archive.write("dimr_kind", c10::IValue(std::string("stage1")));
+  archive.write("dimr_config", c10::IValue(impl_->config.ToString()));
+  for (const auto& item : impl_->net->named_parameters()) {
+    auto t = item.value().detach().to(torch::kCPU);
+    archive.write("param/" + item.key(), half ? t.to(torch::kHalf) : t, /*is_buffer=*/true);
+  }
+  for (const auto& item : impl_->net->named_buffers()) {
+    auto t = item.value().detach().to(torch::kCPU);
+    if (half && t.is_floating_point()) t = t.to(torch::kHalf);
+    archive.write("buffer/" + item.key(), t, /*is_buffer=*/true);
+  }
+  try {
+    archive.save_to(path);
+  } catch (const c10::Error& e) {
+    throw Error("cannot write stage-1 model '" + path + "': " + e.what_without_backtrace());
+  }
+}
+
+Stage1Model Stage1Model::Load(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw ParseError(path, "file does not exist");
+  torch::serialize::InputArchive archive;
+  c10::IValue kind, config_text;
+  try {
+    archive.load_from(path);
+    if (!archive.try_read("dimr_kind", kind) || !kind.isString() ||
+        kind.toStringRef() != "stage1") {
+      throw ParseError(path, "not a dimr stage-1 model (missing or wrong 'dimr_kind')");
+    }
+    if (!archive.try_read("dimr_config", config_text) || !config_text.isString()) {
+      throw ParseError(path, "missing 'dimr_config'");
+    }
+  } catch (const c10::Error& e) {
+    throw ParseError(
+        path, std::string("corrupt or unreadable model archive: ") + e.what_without_backtrace());
+  }
+  Stage1Config config;
+  try {
+    config = Stage1Config::FromString(config_text.toStringRef());
+  } catch (const InvalidArgument& e) {
+    throw ParseError(path, e.what());
+  }
+  Stage1Model model(config);
+  torch::NoGradGuard no_grad;
+  auto load_into = [&](const std::string& key, torch::Tensor& dst) {
+    torch::Tensor t;
+    bool found = false;
+    try {
+      found = archive.try_read(key, t, /*is_buffer=*/true);
+    } catch (const c10::Error& e) {
+      throw ParseError(path, "tensor '" + key + "' unreadable: " + e.what_without_backtrace());
+    }
+    if (!found) throw ParseError(path, "missing tensor '" + key + "'");
+    if (t.sizes() != dst.sizes()) {
+      std::ostringstream msg;
+      msg << "tensor '" << key << "' has shape " << t.sizes() << ", the model expects "
+          << dst.sizes();
+      throw ParseError(path, msg.str());
+    }
+    if (t.is_floating_point() && !torch::isfinite(t).all().item<bool>()) {
+      throw ParseError(path, "tensor '" + key + "' holds NaN or infinite values");
+    }
+    dst.copy_(t.to(dst.dtype()));
+  };
+  for (auto& item : model.impl_->net->named_parameters()) {
+    load_into("param/" + item.key(), item.value());
+  }
+  for (auto& item : model.impl_->net->named_buffers()) {
+    load_into("buffer/" + item.key(), item.value());
+  }
+  return model;
+}
+
+Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
+  torch::NoGradGuard no_grad;
+  const bool was_training = impl_->net->is_training();
+  impl_->net->eval();
+  const BatchTensors t = ToTensors(batch, impl_->device);
+  const HeadOutput h = impl_->Forward(t, nullptr);
+  const LossOut l = ComputeLoss(h, t);
+  if (was_training) impl_->net->train();
+  return l.terms;
+}
+
+Stage1Output Stage1Model::Predict(const Stage1Sample& sample, bool with_features,
+                                  Stage1Timing* timing) const {
+  if (sample.points.empty()) {
+    throw InvalidArgument("stage1 predict: scene '" + sample.name + "' has no points");
+  }
+  for (std::size_t i = 0; i < sample.points.size(); ++i) {
+    if (!sample.points[i].allFinite()) {
+      throw InvalidArgument("stage1 predict: scene '" + sample.name + "' point " +
+                            std::to_string(i) + " is not finite");
+    }
+  }
+  // Inference needs only the points; give the batch builder neutral labels.
+  Stage1Sample s;
+  s.name = sample.name;
+  s.points = sample.points;
+  if (impl_->config.input.use_rgb) {
+    if (sample.colors.size() != sample.points.size()) {
+      throw InvalidArgument("stage1 predict: the model uses colour but scene '" + sample.name +
+                            "' has " + std::to_string(sample.colors.size()) + " colours for " +
+                            std::to_string(sample.points.size()) + " points");
+    }
+    s.colors = sample.colors;
+  }
+  s.semantic.assign(s.points.size(), kStage1Ignore);
+  s.instance.assign(s.points.size(), -1);
+  const Stage1Batch batch = MakeStage1Batch({&s}, impl_->config.input, nullptr, 0);
+
+  torch::NoGradGuard no_grad;
+  impl_->net->eval();
+  const BatchTensors t = ToTensors(batch, impl_->device);
+  Stage1Timing local;
+  HeadOutput h = impl_->Forward(t, &local);
+  const auto t0 = std::chrono::steady_clock::now();
+  Stage1Output out;
+  out.frame = batch.frames.at(0);
+  const int64_t n = batch.num_points();
+  const int nc = impl_->config.num_classes;
+  torch::Tensor prob = torch::softmax(h.semantic, 1).to(torch::kCPU).contiguous();
+  torch::Tensor arg = prob.argmax(1).to(torch::kInt32).contiguous();
+  out.semantic_prob.assign(prob.data_ptr<float>(), prob.data_ptr<float>() + n * nc);
+  out.semantic.assign(arg.data_ptr<int32_t>(), arg.data_ptr<int32_t>() + n);
+  torch::Tensor off = h.offset.to(torch::kCPU).contiguous();
+  out.offsets.resize(n);
+  const float* po = off.data_ptr<float>();
+  for (int64_t i = 0; i < n; ++i)
+    out.offsets[i] = Eigen::Vector3f(po[3 * i], po[3 * i + 1], po[3 * i + 2]);
+  torch::Tensor hb =
+      torch::softmax(h.heading.slice(1, 0, kHeadingBins), 1).to(torch::kCPU).contiguous();
+  torch::Tensor hr =
+      h.heading.slice(1, kHeadingBins, 2 * kHeadingBins).to(torch::kCPU).contiguous();
+  out.heading_prob.assign(hb.data_ptr<float>(), hb.data_ptr<float>() + n * kHeadingBins);
+  out.heading_residual.assign(hr.data_ptr<float>(), hr.data_ptr<float>() + n * kHeadingBins);
+  if (with_features) {
+    torch::Tensor f = h.features.to(torch::kCPU).contiguous();
+    out.features.assign(f.data_ptr<float>(), f.data_ptr<float>() + f.numel());
+  }
+  local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
+  if (timing) *timing = local;
+  return out;
+}
+
+// ---------------------------------------------------------------------------------------
+// Training
+// ---------------------------------------------------------------------------------------
+
+std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& train,
+                                              const Stage1TrainOptions& opt,
+                                              const std::function<void(const Stage1StepLog&)>& log,
+                                              const EpochCallback& on_epoch) {
+  if (train.empty()) throw InvalidArgument("stage1 train: no training scenes");
+  if (opt.epochs < 1) throw InvalidArgument("stage1 train: 'epochs' must be >= 1");
+  if (opt.batch_size < 1) throw InvalidArgument("stage1 train: 'batch_size' must be >= 1");
+  if (!(opt.learning_rate > 0)) throw InvalidArgument("stage1 train: 'learning_rate' must be > 0");
+  if (!(opt.lr_decay > 0 && opt.lr_decay <= 1)) {
+    throw InvalidArgument("stage1 train: 'lr_decay' must be in (0, 1]");
+  }
+  opt.augment.Validate();
+  if (opt.threads > 0) torch::set_num_threads(opt.threads);
+  if (opt.device == "cuda") {
+    if (!torch::cuda::is_available()) {
+      throw InvalidArgument("stage1 train: device 'cuda' requested but not available");
+    }
+    impl_->device = torch::Device(torch::kCUDA);
+  } else if (opt.device != "cpu") {
+    throw InvalidArgument("stage1 train: unknown device '" + opt.device + "' (cpu or cuda)");
+  }
+  auto& net = impl_->net;
+  net->to(impl_->device);
+
+  const int batch_size = std::min<int>(opt.batch_size, static_cast<int>(train.size()));
+  Stage1Loader loader(&train, impl_->config.input, opt.augment, batch_size, opt.seed,
+                      std::max(1, opt.loader_threads));
+  const int per_epoch = loader.batches_per_epoch();
+  const int64_t total_steps = static_cast<int64_t>(per_epoch) * opt.epochs;
+
+  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
+  const std::string optim_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".optim";
+  const std::string state_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".state";
+  int64_t step = 0;  // completed steps
+  if (opt.resume && !opt.checkpoint_path.empty() && std::filesystem::exists(opt.checkpoint_path) &&
+      std::filesystem::exists(state_path)) {
+    Stage1Model loaded = Load(opt.checkpoint_path);
+    if (loaded.config().ToString() != impl_->config.ToString()) {
+      throw InvalidArgument("stage1 train: checkpoint '" + opt.checkpoint_path +
+                            "' has a different configuration: " + loaded.config().ToString());
+    }
+    {
+      torch::NoGradGuard no_grad;
+      auto src = loaded.impl_->net->named_parameters();
+      for (auto& item : net->named_parameters()) item.value().copy_(src[item.key()]);
+      auto srcb = loaded.impl_->net->named_buffers();
+      for (auto& item : net->named_buffers()) item.value().copy_(srcb[item.key()]);
+    }
+    std::ifstream sf(state_path);
+    int64_t saved_per_epoch = 0;
+    if (!(sf >> step >> saved_per_epoch) || step < 0) {
+      throw ParseError(state_path, "unreadable training state (expected 'step batches_per_epoch')");
+    }
+    if (saved_per_epoch != per_epoch) {
+      std::fprintf(stderr,
+                   "warning: %s: %lld batches per epoch before, %d now (other data or batch "
+                   "size); continuing at step %lld\n",
+                   state_path.c_str(), static_cast<long long>(saved_per_epoch), per_epoch,
+                   static_cast<long long>(step));
+    }
+    if (std::filesystem::exists(optim_path)) {
+      try {
+        torch::load(optimizer, optim_path);
+      } catch (const c10::Error&) {
+        std::fprintf(stderr, "warning: optimizer state '%s' unreadable, restarting Adam\n",
+                     optim_path.c_str());
+      }
+    }
+    std::fprintf(stderr, "resuming from %s at step %lld\n", opt.checkpoint_path.c_str(),
+                 static_cast<long long>(step));
+  }
+
+  auto checkpoint = [&]() {
+    if (opt.checkpoint_path.empty()) return;
+    const std::string tmp = opt.checkpoint_path + ".tmp";
+    net->to(torch::kCPU);
+    const auto saved_device = impl_->device;
+    impl_->device = torch::kCPU;
+    Save(tmp);
+    impl_->device = saved_device;
+    net->to(impl_->device);
+    std::filesystem::rename(tmp, opt.checkpoint_path);
+    torch::save(optimizer, optim_path + ".tmp");
+    std::filesystem::rename(optim_path + ".tmp", optim_path);
+    std::ofstream(state_path + ".tmp") << step << " " << per_epoch << "\n";
+    std::filesystem::rename(state_path + ".tmp", state_path);
+  };
+  auto run_epoch_callback = [&](int epoch) {
+    if (!on_epoch) return;
+    net->eval();
+    const auto saved_device = impl_->device;
+    const auto metrics = on_epoch(epoch, *this);
+    impl_->device = saved_device;
+    if (!metrics.empty()) {
+      std::fprintf(stderr, "\nepoch %d:", epoch);
+      for (const auto& [k, v] : metrics) std::fprintf(stderr, " %s=%.4f", k.c_str(), v);
+      std::fprintf(stderr, "\n");
+    }
+  };
+
+  std::vector<Stage1StepLog> logs;
+  const auto t_start = std::chrono::steady_clock::now();
+  auto elapsed_s = [&]() {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  };
+  Stage1LossTerms running;
+  int running_n = 0;
+  bool out_of_time = false;
+  while (step < total_steps && !out_of_time) {
+    const int epoch = static_cast<int>(step / per_epoch);  // 0-based
+    const int first = static_cast<int>(step % per_epoch);
+    loader.StartEpoch(epoch, first);
+    net->train();
+    Stage1Batch batch;
+    while (step < total_steps && loader.Next(&batch)) {
+      const double progress = static_cast<double>(step) / static_cast<double>(total_steps);
+      const double lr = std::max(opt.learning_rate * std::pow(opt.lr_decay, progress), 1e-6);
+      for (auto& group : optimizer.param_groups()) {
+        static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
+      }
+      const BatchTensors t = ToTensors(batch, impl_->device);
+      optimizer.zero_grad();
+      const HeadOutput h = impl_->Forward(t, nullptr);
+      LossOut l = ComputeLoss(h, t);
+      if (!std::isfinite(l.terms.total)) {
+        throw Error("stage1 train: the loss became non-finite at step " + std::to_string(step + 1) +
+                    " (batch " + batch.names.front() + "...); lower the learning rate");
+      }
+      l.total.backward();
+      optimizer.step();
+      ++step;
+      Stage1StepLog s;
+      s.epoch = epoch + 1;
+      s.step = static_cast<int>(step);
+      s.lr = lr;
+      s.loss = l.terms;
+      s.seconds = elapsed_s();
+      logs.push_back(s);
+      if (log) log(s);
+      running.total += l.terms.total;
+      running.semantic += l.terms.semantic;
+      running.offset_norm += l.terms.offset_norm;
+      running.offset_dir += l.terms.offset_dir;
+      running.heading_cls += l.terms.heading_cls;
+      running.heading_res += l.terms.heading_res;
+      ++running_n;
+      if (opt.progress) {
+        const double k = 1.0 / running_n;
+        const int in_epoch = static_cast<int>((step - 1) % per_epoch) + 1;
+        std::fprintf(stderr,
+                     "\r[epoch %d/%d %4d/%d] loss %.3f sem %.3f off %.3f dir %.3f hcls %.3f "
+                     "hres %.3f lr %.1e %.2f s/it   ",
+                     epoch + 1, opt.epochs, in_epoch, per_epoch, running.total * k,
+                     running.semantic * k, running.offset_norm * k, running.offset_dir * k,
+                     running.heading_cls * k, running.heading_res * k, lr,
+                     s.seconds / std::max<double>(1, static_cast<double>(logs.size())));
+        std::fflush(stderr);
+      }
+      if (opt.checkpoint_every_steps > 0 && step % opt.checkpoint_every_steps == 0) checkpoint();
+      if (opt.max_minutes > 0 && elapsed_s() / 60.0 >= opt.max_minutes) {
+        out_of_time = true;
+        break;
+      }
+    }
+    const bool epoch_done = step % per_epoch == 0 || step >= total_steps;
+    if (epoch_done) {
+      running = Stage1LossTerms();
+      running_n = 0;
+      const int finished = static_cast<int>((step + per_epoch - 1) / per_epoch);
+      const bool last = step >= total_steps;
+      checkpoint();
+      if (last || (opt.validate_every_epochs > 0 && finished % opt.validate_every_epochs == 0)) {
+        run_epoch_callback(finished);
+      }
+    }
+  }
+  if (out_of_time) {
+    checkpoint();
+    std::fprintf(stderr, "\ntime budget of %.1f min reached at step %lld\n", opt.max_minutes,
+                 static_cast<long long>(step));
+    run_epoch_callback(static_cast<int>((step + per_epoch - 1) / per_epoch));
+  }
+  if (opt.progress) std::fprintf(stderr, "\n");
+  net->eval();
+  return logs;
+}
+
+}  // namespace dimr::nn

@@ -1,0 +1,611 @@
+// Stage-1 commands: `dimr train stage1`, `dimr stage1 eval`, `dimr bench stage1`.
+// Torch-free: the network lives behind nn/stage1_model.h, clustering in pipeline.
+#if defined(DIMR_HAVE_NN) && defined(DIMR_HAVE_PIPELINE)
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <numeric>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "dimr/data/labels.h"
+#include "dimr/data/synthscan.h"
+#include "dimr/eval/seg_metrics.h"
+#include "dimr/geometry/error.h"
+#include "dimr/nn/stage1_model.h"
+#include "dimr/pipeline/stage1_instances.h"
+#include "tools/command_registry.h"
+#include "tools/render.h"
+#include "tools/sha256.h"
+#include "tools/stage1_scenes.h"
+
+namespace dimr::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double Seconds(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double>(b - a).count();
+}
+
+// ---------------------------------------------------------------- data
+// A scans folder (DIR or DIR/scans) or a cache written by `dimr stage1 prepare`.
+std::vector<nn::Stage1Sample> LoadScenes(const std::string& path, int limit, int threads) {
+  std::vector<nn::Stage1Sample> scenes;
+  if (std::filesystem::is_regular_file(path)) {
+    scenes = nn::ReadStage1Samples(path);
+  } else {
+    std::string dir = path;
+    if (std::filesystem::is_directory(path + "/scans")) dir = path + "/scans";
+    if (!std::filesystem::is_directory(dir)) {
+      throw InvalidArgument("'" + path + "' is neither a scans folder nor a stage-1 cache file");
+    }
+    std::vector<std::string> names;
+    for (const auto& e : std::filesystem::directory_iterator(dir)) {
+      if (e.is_directory()) names.push_back(e.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+    if (limit > 0 && static_cast<int>(names.size()) > limit) names.resize(limit);
+    scenes = LoadStage1Scenes(dir, names, threads);
+  }
+  if (limit > 0 && static_cast<int>(scenes.size()) > limit) scenes.resize(limit);
+  if (scenes.empty()) throw InvalidArgument("no scenes in '" + path + "'");
+  return scenes;
+}
+
+nn::Stage1Config ConfigFromArg(const std::string& text) {
+  if (text == "cpu") return nn::Stage1Config::CpuDefault();
+  if (text == "reference") return nn::Stage1Config::Reference();
+  return nn::Stage1Config::FromString(text);
+}
+
+std::vector<int> RfsToCadTable() {
+  std::vector<int> t(data::kNumRfsClasses);
+  for (int r = 0; r < data::kNumRfsClasses; ++r) t[r] = data::RfsToCad(r);
+  return t;
+}
+
+// ---------------------------------------------------------------- evaluation
+struct Stage1Eval {
+  eval::SemanticIouResult semantic;
+  eval::InstanceApResult instances;
+  double miou_present = 0;  // mean IoU over the classes with ground-truth points
+  int classes_present = 0;
+  int scenes = 0;
+  long long points = 0;
+  double network_s = 0, cluster_s = 0;
+  double heading_error_deg = 0;  // median |heading error| of matched CAD instances (IoU > 0.5)
+  std::vector<std::vector<pipeline::ScoredInstance>> predictions;  // per scene (if kept)
+};
+
+Stage1Eval EvaluateStage1(const nn::Stage1Model& model, const std::vector<nn::Stage1Sample>& scenes,
+                          const pipeline::Stage1InstanceConfig& cfg, bool keep_predictions) {
+  Stage1Eval r;
+  const std::vector<int> rfs_to_cad = RfsToCadTable();
+  std::vector<int> gt_sem, pred_sem;
+  std::vector<eval::InstanceScene> inst_scenes;
+  std::vector<double> heading_errors;
+  for (const auto& s : scenes) {
+    const auto t0 = Clock::now();
+    const nn::Stage1Output out = model.Predict(s);
+    const auto t1 = Clock::now();
+    std::vector<int> cad(out.semantic.size());
+    for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
+    auto inst =
+        pipeline::ExtractStage1Instances(s.points, out.offsets, cad, out.semantic_prob,
+                                         out.heading_prob, out.heading_residual, rfs_to_cad, cfg);
+    const auto t2 = Clock::now();
+    r.network_s += Seconds(t0, t1);
+    r.cluster_s += Seconds(t1, t2);
+    r.points += static_cast<long long>(s.points.size());
+    gt_sem.insert(gt_sem.end(), s.semantic.begin(), s.semantic.end());
+    pred_sem.insert(pred_sem.end(), out.semantic.begin(), out.semantic.end());
+    eval::InstanceScene is;
+    is.gt_label.resize(s.points.size(), -1);
+    is.gt_instance.resize(s.points.size(), -1);
+    std::vector<int> inst_size(s.instances.size(), 0);
+    for (std::size_t i = 0; i < s.points.size(); ++i) {
+      const int k = s.instance[i];
+      if (k < 0 || s.instances[k].cad_class < 0) continue;
+      is.gt_label[i] = s.instances[k].cad_class;
+      is.gt_instance[i] = k;
+      ++inst_size[k];
+    }
+    for (const auto& p : inst) {
+      is.preds.push_back({p.cad_class, p.score, p.points});
+      // Heading error against the GT instance holding most of its points (IoU > 0.5).
+      std::vector<int> count(s.instances.size(), 0);
+      for (int i : p.points) {
+        if (s.instance[i] >= 0) ++count[s.instance[i]];
+      }
+      const int best =
+          static_cast<int>(std::max_element(count.begin(), count.end()) - count.begin());
+      if (count.empty() || !s.instances[best].has_heading) continue;
+      const double iou = static_cast<double>(count[best]) /
+                         (static_cast<double>(p.points.size()) + inst_size[best] - count[best]);
+      if (iou <= 0.5) continue;
+      double d = std::remainder(p.heading - s.instances[best].heading, 2 * M_PI);
+      heading_errors.push_back(std::abs(d) * 180.0 / M_PI);
+    }
+    inst_scenes.push_back(std::move(is));
+    if (keep_predictions) r.predictions.push_back(std::move(inst));
+  }
+  r.scenes = static_cast<int>(scenes.size());
+  r.semantic = eval::SemanticIou(gt_sem, pred_sem, nn::kStage1Classes);
+  double sum = 0;
+  for (int c = 0; c < nn::kStage1Classes; ++c) {
+    if (r.semantic.tp[c] + r.semantic.fn[c] > 0) {
+      sum += r.semantic.iou[c];
+      ++r.classes_present;
+    }
+  }
+  r.miou_present = r.classes_present ? sum / r.classes_present : 0;
+  r.instances = eval::InstanceAp(inst_scenes, data::kNumCadClasses);
+  if (!heading_errors.empty()) {
+    std::nth_element(heading_errors.begin(), heading_errors.begin() + heading_errors.size() / 2,
+                     heading_errors.end());
+    r.heading_error_deg = heading_errors[heading_errors.size() / 2];
+  }
+  return r;
+}
+
+std::string Fmt(double v) {
+  if (std::isnan(v)) return "-";
+  char b[32];
+  std::snprintf(b, sizeof(b), "%.3f", v);
+  return b;
+}
+
+void PrintEval(const Stage1Eval& r) {
+  std::printf("%d scenes, %lld points; network %.1f s, clustering %.1f s\n", r.scenes, r.points,
+              r.network_s, r.cluster_s);
+  std::printf("\n| RFS class | IoU | GT points |\n|---|---|---|\n");
+  const auto& names = data::RfsClassNames();
+  for (int c = 0; c < nn::kStage1Classes; ++c) {
+    if (r.semantic.tp[c] + r.semantic.fn[c] + r.semantic.fp[c] == 0) continue;
+    std::printf("| %s | %s | %lld |\n", names[c], Fmt(r.semantic.iou[c]).c_str(),
+                r.semantic.tp[c] + r.semantic.fn[c]);
+  }
+  std::printf(
+      "\nsemantic mIoU over the %d classes present: %.4f (all predicted/present: %.4f), "
+      "accuracy %.4f\n",
+      r.classes_present, r.miou_present, r.semantic.miou, r.semantic.accuracy);
+  std::printf("\n| CAD class | AP | AP@50 | AP@25 |\n|---|---|---|---|\n");
+  const auto& cad = data::CadClassNames();
+  for (int c = 0; c < data::kNumCadClasses; ++c) {
+    std::printf("| %s | %s | %s | %s |\n", cad[c], Fmt(r.instances.class_ap[c]).c_str(),
+                Fmt(r.instances.class_ap50[c]).c_str(), Fmt(r.instances.class_ap25[c]).c_str());
+  }
+  std::printf("| **mean** | %s | %s | %s |\n", Fmt(r.instances.map).c_str(),
+              Fmt(r.instances.map50).c_str(), Fmt(r.instances.map25).c_str());
+  std::printf("\nmedian heading error of matched CAD instances: %.1f deg\n", r.heading_error_deg);
+}
+
+nlohmann::json EvalJson(const Stage1Eval& r) {
+  nlohmann::json j;
+  auto num = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
+  j["scenes"] = r.scenes;
+  j["points"] = r.points;
+  j["network_seconds"] = r.network_s;
+  j["cluster_seconds"] = r.cluster_s;
+  j["miou_present"] = r.miou_present;
+  j["classes_present"] = r.classes_present;
+  j["miou"] = r.semantic.miou;
+  j["accuracy"] = r.semantic.accuracy;
+  const auto& names = data::RfsClassNames();
+  for (int c = 0; c < nn::kStage1Classes; ++c) j["semantic_iou"][names[c]] = num(r.semantic.iou[c]);
+  const auto& cad = data::CadClassNames();
+  for (int c = 0; c < data::kNumCadClasses; ++c) {
+    j["instance"][cad[c]] = {{"ap", num(r.instances.class_ap[c])},
+                             {"ap50", num(r.instances.class_ap50[c])},
+                             {"ap25", num(r.instances.class_ap25[c])}};
+  }
+  j["map"] = r.instances.map;
+  j["map50"] = r.instances.map50;
+  j["map25"] = r.instances.map25;
+  j["heading_error_deg_median"] = r.heading_error_deg;
+  return j;
+}
+
+// Top-down pictures: ground-truth CAD instances | predicted instances, side by side.
+data::SynthScene ColouredScene(const nn::Stage1Sample& s, const std::vector<int>& instance) {
+  data::SynthScene scene;
+  scene.name = s.name;
+  scene.points.reserve(s.points.size());
+  for (const auto& p : s.points) scene.points.push_back(p.cast<double>());
+  scene.colors.assign(s.points.size(), geometry::Color(128, 128, 128));
+  scene.instance = instance;
+  return scene;
+}
+
+void RenderComparison(const nn::Stage1Sample& s, const std::vector<pipeline::ScoredInstance>& pred,
+                      const std::string& path) {
+  std::vector<int> gt(s.points.size(), 0), pr(s.points.size(), 0);
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const int k = s.instance[i];
+    if (k >= 0 && s.instances[k].cad_class >= 0) gt[i] = k + 1;
+  }
+  for (std::size_t k = 0; k < pred.size(); ++k) {
+    for (int i : pred[k].points) pr[i] = static_cast<int>(k) + 1000;
+  }
+  const double mpp = 0.02;
+  const data::RgbImage a = data::RenderTopDown(ColouredScene(s, gt), mpp, true);
+  const data::RgbImage b = data::RenderTopDown(ColouredScene(s, pr), mpp, true);
+  const int gap = 8, w = a.width + gap + b.width, h = std::max(a.height, b.height);
+  std::vector<std::uint8_t> img(static_cast<std::size_t>(w) * h * 3, 255);
+  auto blit = [&](const data::RgbImage& src, int x0) {
+    for (int y = 0; y < src.height; ++y) {
+      std::copy_n(&src.rgb[static_cast<std::size_t>(y) * src.width * 3], src.width * 3,
+                  &img[(static_cast<std::size_t>(y) * w + x0) * 3]);
+    }
+  };
+  blit(a, 0);
+  blit(b, a.width + gap);
+  WritePng(path, w, h, img);
+}
+
+// ---------------------------------------------------------------- train
+struct TrainArgs {
+  std::string train, val, out = "models/stage1", config = "cpu", device = "cpu";
+  int epochs = 40, batch = 4, threads = 0, loader_threads = 1, checkpoint_every = 200;
+  int limit_train = 0, val_scenes = 20, val_every = 1, data_threads = 2;
+  double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
+  std::uint64_t seed = 123;
+  bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
+};
+
+// Opens the per-step CSV for appending from `first_step` on: rows of a previous run at or after
+// that step (training resumed from an earlier checkpoint) are dropped, so every step appears once.
+void OpenStepLog(const std::string& path, long long first_step, std::ofstream* csv) {
+  const char* header =
+      "step,epoch,lr,loss,semantic,offset_norm,offset_dir,heading_cls,heading_res,seconds";
+  std::vector<std::string> keep;
+  if (std::ifstream in(path); in) {
+    std::string line;
+    while (std::getline(in, line)) {
+      if (line.empty() || line == header) continue;
+      try {
+        if (std::stoll(line.substr(0, line.find(','))) < first_step) keep.push_back(line);
+      } catch (const std::logic_error&) {
+        // not a data row
+      }
+    }
+  }
+  csv->open(path, std::ios::trunc);
+  if (!*csv) throw Error("cannot write '" + path + "'");
+  *csv << header << "\n";
+  for (const auto& l : keep) *csv << l << "\n";
+}
+
+void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::Stage1Model& model,
+                    std::size_t train_scenes, std::size_t val_scenes, long long steps,
+                    double minutes, const Stage1Eval* val, const std::string& weights) {
+  std::ofstream y(a.out + "/model.yaml");
+  y << "name: stage1\n";
+  y << "description: DIMR stage 1 (sparse U-Net + semantic 25 / offset / 12-bin heading heads), "
+       "dimr-method.md sections 1-3\n";
+  y << "architecture: \"" << model.config().ToString() << "\"\n";
+  y << "parameters: " << model.NumParameters() << "\n";
+  y << "input: network frame (x-y centred on the cloud, floor at z = 0), features xyz"
+    << (model.config().input.use_rgb ? " + rgb" : "") << ", voxel "
+    << 100.0 / model.config().input.scale << " cm\n";
+  y << "label_set: rfs25\n";
+  y << "training:\n";
+  y << "  command: \"" << command << "\"\n";
+  y << "  seed: " << a.seed << "\n";
+  y << "  train_data: \"" << a.train << "\"\n";
+  y << "  train_scenes: " << train_scenes << "\n";
+  y << "  val_data: \"" << a.val << "\"\n";
+  y << "  val_scenes: " << val_scenes << "\n";
+  y << "  steps: " << steps << "\n";
+  y << "  batch_size: " << a.batch << "\n";
+  y << "  minutes_this_run: " << minutes << "\n";
+  y << "  device: " << a.device << "\n";
+  if (val) {
+    y << "metrics_val:\n";
+    y << "  semantic_miou_present: " << val->miou_present << "\n";
+    y << "  instance_ap50_cad: " << val->instances.map50 << "\n";
+    y << "  instance_ap25_cad: " << val->instances.map25 << "\n";
+    y << "  instance_ap_cad: " << val->instances.map << "\n";
+    y << "  heading_error_deg_median: " << val->heading_error_deg << "\n";
+  }
+  y << "weights:\n";
+  y << "  file: " << std::filesystem::path(weights).filename().string() << "\n";
+  y << "  dtype: " << (a.fp32 ? "float32" : "float16") << "\n";
+  y << "  sha256: " << Sha256File(weights) << "\n";
+}
+
+void RunTrain(const TrainArgs& a, const std::string& command) {
+  const auto t_start = Clock::now();
+  nn::Stage1Config config = ConfigFromArg(a.config);
+  if (a.rgb) config.input.use_rgb = true;
+  nn::Stage1TrainOptions opt;
+  opt.epochs = a.epochs;
+  opt.batch_size = a.batch;
+  opt.learning_rate = a.lr;
+  opt.lr_decay = a.lr_decay;
+  opt.seed = a.seed;
+  opt.threads = a.threads;
+  opt.loader_threads = a.loader_threads;
+  opt.device = a.device;
+  opt.max_minutes = a.max_minutes;
+  opt.checkpoint_every_steps = a.checkpoint_every;
+  opt.validate_every_epochs = a.val_every;
+  opt.progress = !a.quiet;
+  opt.augment.enabled = !a.no_augment;
+  opt.augment.elastic = !a.no_elastic;
+  std::filesystem::create_directories(a.out + "/checkpoint");
+  opt.checkpoint_path = a.out + "/checkpoint/stage1.pt";
+
+  const auto train = LoadScenes(a.train, a.limit_train, a.data_threads);
+  std::vector<nn::Stage1Sample> val;
+  if (!a.val.empty()) val = LoadScenes(a.val, a.val_scenes, a.data_threads);
+  nn::Stage1Model model(config, a.seed);
+  long long points = 0;
+  for (const auto& s : train) points += static_cast<long long>(s.points.size());
+  std::printf(
+      "stage 1 %s, %lld parameters; %zu training scenes (%lld points), %zu validation "
+      "scenes (loaded in %.1f s)\n",
+      config.ToString().c_str(), static_cast<long long>(model.NumParameters()), train.size(),
+      points, val.size(), Seconds(t_start, Clock::now()));
+  std::fflush(stdout);
+
+  const std::string log_path = a.out + "/train_log.csv";
+  std::ofstream csv;
+  const bool fresh_val = !std::filesystem::exists(a.out + "/val_log.csv");
+  std::ofstream vcsv(a.out + "/val_log.csv", std::ios::app);
+  if (fresh_val) vcsv << "epoch,miou_present,map50,map25,map,heading_error_deg,seconds\n";
+  long long last_step = 0;
+  std::unique_ptr<Stage1Eval> last_val;
+  const pipeline::Stage1InstanceConfig icfg;
+  auto on_epoch = [&](int epoch, const nn::Stage1Model& m) -> std::map<std::string, double> {
+    if (val.empty()) return {};
+    auto r = std::make_unique<Stage1Eval>(EvaluateStage1(m, val, icfg, false));
+    vcsv << epoch << "," << r->miou_present << "," << r->instances.map50 << ","
+         << r->instances.map25 << "," << r->instances.map << "," << r->heading_error_deg << ","
+         << Seconds(t_start, Clock::now()) << "\n";
+    vcsv.flush();
+    std::map<std::string, double> out{{"val_miou", r->miou_present},
+                                      {"val_ap50", r->instances.map50},
+                                      {"val_ap25", r->instances.map25},
+                                      {"val_heading_err_deg", r->heading_error_deg}};
+    last_val = std::move(r);
+    return out;
+  };
+  const auto logs = model.Train(
+      train, opt,
+      [&](const nn::Stage1StepLog& s) {
+        if (!csv.is_open()) OpenStepLog(log_path, s.step, &csv);
+        last_step = s.step;
+        csv << s.step << "," << s.epoch << "," << s.lr << "," << s.loss.total << ","
+            << s.loss.semantic << "," << s.loss.offset_norm << "," << s.loss.offset_dir << ","
+            << s.loss.heading_cls << "," << s.loss.heading_res << "," << s.seconds << "\n";
+        if (s.step % 20 == 0) csv.flush();
+      },
+      on_epoch);
+  csv.flush();
+  const std::string weights = a.out + "/stage1.pt";
+  model.Save(weights, !a.fp32);
+  const double minutes = Seconds(t_start, Clock::now()) / 60.0;
+  WriteModelCard(a, command, model, train.size(), val.size(), last_step, minutes, last_val.get(),
+                 weights);
+  std::printf("saved %s after %lld steps (%.1f min), model card %s/model.yaml\n", weights.c_str(),
+              last_step, minutes, a.out.c_str());
+  if (last_val) PrintEval(*last_val);
+}
+
+void SetupTrain(CLI::App& app) {
+  auto a = std::make_shared<TrainArgs>();
+  app.add_option("--train", a->train,
+                 "training scenes: scans folder or `dimr stage1 prepare` cache")
+      ->required();
+  app.add_option("--val", a->val, "validation scenes (scans folder or cache); empty = none");
+  app.add_option("--out", a->out, "output folder (weights, model card, logs, checkpoint/)");
+  app.add_option("--config", a->config,
+                 "cpu | reference | 'scale=20 rgb=0 widths=16,32,48,64,96,128 reps=2 classes=25'");
+  app.add_option("--epochs", a->epochs, "epochs")->check(CLI::Range(1, 100000));
+  app.add_option("--batch", a->batch, "scenes per step")->check(CLI::Range(1, 256));
+  app.add_option("--lr", a->lr, "Adam learning rate")->check(CLI::PositiveNumber);
+  app.add_option("--lr-decay", a->lr_decay, "learning-rate factor reached at the end (0, 1]");
+  app.add_option("--seed", a->seed, "seed (weights, shuffling, augmentation)");
+  app.add_option("--threads", a->threads, "intra-op threads (0 = default)")
+      ->check(CLI::Range(0, 256));
+  app.add_option("--loader-threads", a->loader_threads, "batch-building threads")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--data-threads", a->data_threads, "threads reading scene folders")
+      ->check(CLI::Range(1, 64));
+  app.add_option("--device", a->device, "cpu | cuda");
+  app.add_option("--max-minutes", a->max_minutes, "stop (checkpointed) after this many minutes");
+  app.add_option("--checkpoint-every", a->checkpoint_every, "steps between checkpoints");
+  app.add_option("--limit-train", a->limit_train, "use only the first N training scenes");
+  app.add_option("--val-scenes", a->val_scenes, "validation scenes used (first N)");
+  app.add_option("--val-every", a->val_every, "epochs between validation passes");
+  app.add_flag("--no-augment", a->no_augment, "no augmentation");
+  app.add_flag("--no-elastic", a->no_elastic, "no elastic distortion");
+  app.add_flag("--rgb", a->rgb, "also feed colours");
+  app.add_flag("--fp32", a->fp32, "store the final weights as float32 (default float16)");
+  app.add_flag("--quiet", a->quiet, "no progress bar");
+  app.callback([a, &app]() { RunTrain(*a, CommandLine(app)); });
+}
+
+// ---------------------------------------------------------------- eval
+struct EvalArgs {
+  std::string model = "models/stage1/stage1.pt", scans, json, render_dir, scene_list;
+  int limit = 0, render = 0, threads = 2;
+  double nms = 0.3;
+  int min_points = 100;
+};
+
+void RunEval(const EvalArgs& a) {
+  const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
+  auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  pipeline::Stage1InstanceConfig cfg;
+  cfg.nms_iou = a.nms;
+  cfg.min_points = a.min_points;
+  cfg.Validate();
+  std::printf("model %s (%s), %zu scenes\n", a.model.c_str(), model.config().ToString().c_str(),
+              scenes.size());
+  const Stage1Eval r = EvaluateStage1(model, scenes, cfg, a.render > 0);
+  PrintEval(r);
+  if (!a.json.empty()) {
+    std::ofstream f(a.json);
+    if (!f) throw Error("cannot write '" + a.json + "'");
+    f << EvalJson(r).dump(2) << "\n";
+  }
+  if (a.render > 0) {
+    const std::string dir = a.render_dir.empty() ? "out/stage1_render" : a.render_dir;
+    std::filesystem::create_directories(dir);
+    for (int k = 0; k < std::min<int>(a.render, static_cast<int>(scenes.size())); ++k) {
+      const std::string path = dir + "/" + scenes[k].name + "_gt_vs_pred.png";
+      RenderComparison(scenes[k], r.predictions[k], path);
+      std::printf("wrote %s\n", path.c_str());
+    }
+  }
+}
+
+void SetupEval(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  app.add_option("--model", a->model, "stage-1 weights (dimr train stage1)");
+  app.add_option("--scans", a->scans, "scenes: scans folder or `dimr stage1 prepare` cache")
+      ->required();
+  app.add_option("--limit", a->limit, "first N scenes only");
+  app.add_option("--threads", a->threads, "threads reading scene folders");
+  app.add_option("--nms", a->nms, "point-IoU NMS threshold");
+  app.add_option("--min-points", a->min_points, "keep instances with more points than this");
+  app.add_option("--json", a->json, "write the metrics as JSON");
+  app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
+  app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
+  app.callback([a]() { RunEval(*a); });
+}
+
+// ---------------------------------------------------------------- bench
+struct BenchArgs {
+  std::string model = "models/stage1/stage1.pt", json;
+  int rooms = 5, points = 100000, threads = 1, repeats = 3;
+  std::uint64_t seed = 11;
+};
+
+double Median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+void RunBench(const BenchArgs& a) {
+  const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
+  // Rooms scanned at raw density (the accumulated cloud a robot gets), subsampled to exactly
+  // `points` points.
+  data::SynthConfig sc;
+  sc.scanner.density = data::ScanDensity::kRaw;
+  sc.scanner.threads = 2;
+  std::vector<nn::Stage1Sample> rooms;
+  for (int r = 0; r < a.rooms; ++r) {
+    const auto g =
+        data::GenerateScene(sc, data::SceneSeed(a.seed, "test", r), data::SceneName("test", r));
+    nn::Stage1Sample s = Stage1SampleFromScene(g.scene);
+    std::mt19937_64 rng(a.seed + r);
+    std::vector<int> idx(s.points.size());
+    std::iota(idx.begin(), idx.end(), 0);
+    std::shuffle(idx.begin(), idx.end(), rng);
+    if (static_cast<int>(idx.size()) > a.points) idx.resize(a.points);
+    nn::Stage1Sample sub;
+    sub.name = s.name;
+    for (int i : idx) {
+      sub.points.push_back(s.points[i]);
+      sub.semantic.push_back(s.semantic[i]);
+      sub.instance.push_back(s.instance[i]);
+      if (!s.colors.empty()) sub.colors.push_back(s.colors[i]);
+    }
+    sub.instances = s.instances;
+    rooms.push_back(std::move(sub));
+  }
+  const std::vector<int> rfs_to_cad = RfsToCadTable();
+  const pipeline::Stage1InstanceConfig cfg;
+  std::vector<double> vox, unet, heads, clus, total;
+  std::vector<long long> npts;
+  for (int rep = 0; rep < a.repeats + 1; ++rep) {  // first round = warm-up
+    for (const auto& s : rooms) {
+      nn::Stage1Timing t;
+      const auto t0 = Clock::now();
+      const nn::Stage1Output out = model.Predict(s, false, &t);
+      const auto t1 = Clock::now();
+      std::vector<int> cad(out.semantic.size());
+      for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
+      const auto inst =
+          pipeline::ExtractStage1Instances(s.points, out.offsets, cad, out.semantic_prob,
+                                           out.heading_prob, out.heading_residual, rfs_to_cad, cfg);
+      const auto t2 = Clock::now();
+      if (rep == 0) continue;
+      vox.push_back(t.voxelize_ms);
+      unet.push_back(t.unet_ms);
+      heads.push_back(Seconds(t0, t1) * 1e3 - t.voxelize_ms - t.unet_ms);
+      clus.push_back(Seconds(t1, t2) * 1e3);
+      total.push_back(Seconds(t0, t2) * 1e3);
+      npts.push_back(static_cast<long long>(s.points.size()));
+    }
+  }
+  std::printf("stage-1 inference, %s, %d rooms x %d repeats, %lld points per room, %d thread(s)\n",
+              model.config().ToString().c_str(), a.rooms, a.repeats, npts.empty() ? 0 : npts[0],
+              a.threads);
+  std::printf("| step | median ms | min ms | max ms |\n|---|---|---|---|\n");
+  auto row = [](const char* name, const std::vector<double>& v) {
+    std::printf("| %s | %.1f | %.1f | %.1f |\n", name, Median(v),
+                *std::min_element(v.begin(), v.end()), *std::max_element(v.begin(), v.end()));
+  };
+  row("voxelise", vox);
+  row("U-Net", unet);
+  row("heads (+ batch build, softmax, copy-out)", heads);
+  row("clustering (4 passes) + NMS", clus);
+  row("total", total);
+  if (!a.json.empty()) {
+    nlohmann::json j;
+    j["model"] = a.model;
+    j["config"] = model.config().ToString();
+    j["rooms"] = a.rooms;
+    j["repeats"] = a.repeats;
+    j["points_per_room"] = a.points;
+    j["threads"] = a.threads;
+    j["median_ms"] = {{"voxelize", Median(vox)},
+                      {"unet", Median(unet)},
+                      {"heads", Median(heads)},
+                      {"clustering", Median(clus)},
+                      {"total", Median(total)}};
+    std::ofstream f(a.json);
+    if (!f) throw Error("cannot write '" + a.json + "'");
+    f << j.dump(2) << "\n";
+  }
+}
+
+void SetupBench(CLI::App& app) {
+  auto a = std::make_shared<BenchArgs>();
+  app.add_option("--model", a->model, "stage-1 weights");
+  app.add_option("--rooms", a->rooms, "rooms (SynthScan test split, raw density)")
+      ->check(CLI::Range(1, 100));
+  app.add_option("--points", a->points, "points per room")->check(CLI::Range(1000, 5000000));
+  app.add_option("--repeats", a->repeats, "timed rounds (median)")->check(CLI::Range(1, 100));
+  app.add_option("--threads", a->threads, "intra-op threads")->check(CLI::Range(1, 256));
+  app.add_option("--seed", a->seed, "room seed");
+  app.add_option("--json", a->json, "also write JSON");
+  app.callback([a]() {
+    nn::SetIntraOpThreads(a->threads);
+    RunBench(*a);
+  });
+}
+
+const Registrar kTrain("train", "stage1", "Train the stage-1 point-wise network", &SetupTrain);
+const Registrar kEval("stage1", "eval",
+                      "Stage-1 metrics: semantic mIoU (25 classes) and instance AP (8 CAD classes)",
+                      &SetupEval);
+const Registrar kBench("bench", "stage1",
+                       "Stage-1 inference time per room: voxelise / U-Net / heads / clustering",
+                       &SetupBench);
+
+}  // namespace
+}  // namespace dimr::tools
+#endif
