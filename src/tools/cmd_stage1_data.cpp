@@ -115,7 +115,8 @@ void PrintCadSummary(const Stats& s) {
 
 // ---------------------------------------------------------------- prepare
 struct PrepareArgs {
-  std::string scans, scene_list, out;
+  std::string scans, scene_list, out, scan2cad;
+  bool force_scan2cad = false;
   int threads = 0;
 };
 
@@ -124,7 +125,15 @@ void RunPrepare(const PrepareArgs& a) {
   const std::string dir = ScansFolder(a.scans);
   const std::vector<std::string> names =
       a.scene_list.empty() ? std::vector<std::string>() : ReadSceneList(a.scene_list);
-  const auto samples = LoadStage1Scenes(dir, names, a.threads);
+  if (a.force_scan2cad && a.scan2cad.empty()) {
+    throw InvalidArgument("--force-scan2cad needs --scan2cad full_annotations.json");
+  }
+  Scan2CadByScene annotations;
+  if (!a.scan2cad.empty()) annotations = ReadScan2CadByScene(a.scan2cad);
+  Stage1LoadReport report;
+  const auto samples =
+      LoadStage1Scenes(dir, names, a.threads, a.scan2cad.empty() ? nullptr : &annotations,
+                       a.force_scan2cad, &report);
   if (samples.empty()) throw InvalidArgument("no scene folders in '" + dir + "'");
   nn::WriteStage1Samples(a.out, samples);
   const Stats s = SplitStats(samples).at("all");
@@ -136,6 +145,26 @@ void RunPrepare(const PrepareArgs& a) {
       static_cast<long long>(s.ignored_points), static_cast<long long>(s.instances),
       static_cast<long long>(s.cad_instances), secs);
   PrintCadSummary(s);
+  if (!a.scan2cad.empty()) {
+    std::printf(
+        "Scan2CAD (%s, %zu scans): %d scenes relabelled from Scan2CAD, %d kept their "
+        "SynthScan boxes, %d real scenes without an entry\n",
+        a.scan2cad.c_str(), annotations.size(), report.relabelled, report.kept_synthscan,
+        report.without_scan2cad);
+    if (report.relabelled > 0) {
+      std::printf("relabelling: %s\n", data::ToString(report.relabel).c_str());
+    }
+    if (report.kept_synthscan > 0 && !a.force_scan2cad) {
+      std::printf(
+          "note: SynthScan scenes keep their own CAD boxes; --force-scan2cad relabels "
+          "them too\n");
+    }
+  } else if (report.without_scan2cad > 0) {
+    std::printf(
+        "note: %d real ScanNet scenes without --scan2cad: instances from the "
+        "aggregation, no CAD box headings\n",
+        report.without_scan2cad);
+  }
 }
 
 void SetupPrepare(CLI::App& app) {
@@ -148,6 +177,13 @@ void SetupPrepare(CLI::App& app) {
   app.add_option("--threads", a->threads, "reader threads (0 = all cores)")
       ->check(CLI::Range(0, 256));
   app.add_option("--out", a->out, "output cache file (.bin)")->required();
+  app.add_option("--scan2cad", a->scan2cad,
+                 "Scan2CAD full_annotations.json: re-label real ScanNet scenes (no "
+                 "synthscan.json) as the DIMR reference (CAD boxes, headings, rebuilt "
+                 "bookshelf/cabinet/bathtub instances)")
+      ->check(CLI::ExistingFile);
+  app.add_flag("--force-scan2cad", a->force_scan2cad,
+               "re-label SynthScan scenes from --scan2cad too (instead of their own boxes)");
   app.callback([a]() { RunPrepare(*a); });
 }
 

@@ -7,6 +7,8 @@
 #include <map>
 #include <thread>
 
+#include "dimr/data/scan2cad_io.h"
+#include "dimr/data/scan2cad_relabel.h"
 #include "dimr/data/scannet_io.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_data.h"
@@ -61,9 +63,66 @@ nn::Stage1Sample Stage1SampleFromScene(const data::SynthScene& scene) {
   return s;
 }
 
+Scan2CadByScene ReadScan2CadByScene(const std::string& path) {
+  Scan2CadByScene out;
+  for (data::Scan2CadScene& s : data::ReadScan2CadAnnotations(path)) {
+    const std::string id = s.id_scan;
+    if (!out.emplace(id, std::move(s)).second) {
+      throw ParseError(path, "scan '" + id + "' is listed twice");
+    }
+  }
+  return out;
+}
+
+namespace {
+
+enum class SceneSource { kSynthScan, kRelabelled, kKeptSynthScan, kRealWithoutScan2Cad };
+
+// Boxes of real ScanNet instances: the axis-aligned box of their points (heading 0).
+void PointBoxes(data::SynthScene* scene) {
+  std::map<int, geometry::AABB> bounds;
+  for (std::size_t k = 0; k < scene->points.size(); ++k) {
+    if (scene->instance[k] > 0) bounds[scene->instance[k]].Extend(scene->points[k]);
+  }
+  for (data::SynthInstance& in : scene->instances) {
+    in.box = geometry::OrientedBox();
+    auto it = bounds.find(in.id);
+    if (it == bounds.end()) continue;
+    in.box.center = it->second.Center();
+    in.box.size = it->second.Extent();
+  }
+}
+
+data::SynthScene ReadStage1Scene(const std::string& dir, const std::string& name,
+                                 const Scan2CadByScene* scan2cad, bool force_scan2cad,
+                                 SceneSource* source, data::RelabelStats* stats) {
+  namespace fs = std::filesystem;
+  data::SynthScene scene = data::ReadScanNetScene(dir);
+  const bool synthscan = fs::exists(fs::path(dir) / (name + ".synthscan.json"));
+  const data::Scan2CadScene* annotation = nullptr;
+  if (scan2cad != nullptr) {
+    auto it = scan2cad->find(scene.name);
+    if (it != scan2cad->end()) annotation = &it->second;
+  }
+  if (annotation != nullptr && (!synthscan || force_scan2cad)) {
+    *stats = data::RelabelWithScan2Cad(&scene, *annotation);
+    *source = SceneSource::kRelabelled;
+  } else if (synthscan) {
+    *source = annotation != nullptr ? SceneSource::kKeptSynthScan : SceneSource::kSynthScan;
+  } else {
+    data::AxisAlignScene(&scene);
+    PointBoxes(&scene);
+    *source = SceneSource::kRealWithoutScan2Cad;
+  }
+  return scene;
+}
+
+}  // namespace
+
 std::vector<nn::Stage1Sample> LoadStage1Scenes(const std::string& scans_dir,
                                                const std::vector<std::string>& scene_names,
-                                               int threads) {
+                                               int threads, const Scan2CadByScene* scan2cad,
+                                               bool force_scan2cad, Stage1LoadReport* report) {
   namespace fs = std::filesystem;
   if (!fs::is_directory(scans_dir)) {
     throw ParseError(scans_dir, "not a folder of ScanNet scene folders");
@@ -76,13 +135,16 @@ std::vector<nn::Stage1Sample> LoadStage1Scenes(const std::string& scans_dir,
     std::sort(names.begin(), names.end());
   }
   std::vector<nn::Stage1Sample> out(names.size());
+  std::vector<SceneSource> sources(names.size(), SceneSource::kSynthScan);
+  std::vector<data::RelabelStats> stats(names.size());
   std::vector<std::exception_ptr> errors(names.size());
   std::atomic<std::size_t> next{0};
   auto work = [&] {
     for (std::size_t i = next++; i < names.size(); i = next++) {
       const std::string dir = (fs::path(scans_dir) / names[i]).string();
       try {
-        out[i] = Stage1SampleFromScene(data::ReadScanNetScene(dir));
+        out[i] = Stage1SampleFromScene(
+            ReadStage1Scene(dir, names[i], scan2cad, force_scan2cad, &sources[i], &stats[i]));
       } catch (const std::exception& e) {
         errors[i] = std::make_exception_ptr(ParseError(dir, e.what()));
       }
@@ -96,6 +158,37 @@ std::vector<nn::Stage1Sample> LoadStage1Scenes(const std::string& scans_dir,
   for (auto& t : pool) t.join();
   for (const auto& e : errors) {
     if (e) std::rethrow_exception(e);
+  }
+  if (report != nullptr) {
+    *report = Stage1LoadReport();
+    for (std::size_t i = 0; i < names.size(); ++i) {
+      switch (sources[i]) {
+        case SceneSource::kRelabelled: {
+          ++report->relabelled;
+          data::RelabelStats& t = report->relabel;
+          const data::RelabelStats& s = stats[i];
+          t.kept += s.kept;
+          t.dropped_ignored += s.dropped_ignored;
+          t.dropped_rebuilt += s.dropped_rebuilt;
+          t.rebuilt += s.rebuilt;
+          t.rebuilt_empty += s.rebuilt_empty;
+          t.linked += s.linked;
+          t.unmatched += s.unmatched;
+          t.non_cad_models += s.non_cad_models;
+          t.kept_with_box += s.kept_with_box;
+          t.points_lost += s.points_lost;
+          break;
+        }
+        case SceneSource::kKeptSynthScan:
+          ++report->kept_synthscan;
+          break;
+        case SceneSource::kRealWithoutScan2Cad:
+          ++report->without_scan2cad;
+          break;
+        case SceneSource::kSynthScan:
+          break;
+      }
+    }
   }
   return out;
 }
