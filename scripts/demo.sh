@@ -3,7 +3,9 @@
 # end to end today on the bundled default model:
 #  1. two SynthScan rooms (ScanNet/Scan2CAD/ShapeNet formats, top-down renders, rosbags);
 #  2. held-out procedural CAD objects encoded and decoded by the bundled BSP-CVAE
-#     (models/bsp): IoU / Chamfer table and a picture of originals next to reconstructions.
+#     (models/bsp): IoU / Chamfer table and a picture of originals next to reconstructions;
+#  3. the two rooms segmented by the bundled stage-1 model (models/stage1): semantic IoU,
+#     instance AP and ground-truth-vs-prediction pictures.
 # Output goes to out/demo/.
 set -eo pipefail
 REPO=$(cd "$(dirname "$0")/.." && pwd)
@@ -19,4 +21,6 @@ mkdir -p "$OUT"
 "$DIMR" bsp eval-cad --model models/bsp/bsp.pt --per-class 5 --seed 3 | tee "$OUT/bsp_eval.md"
 "$DIMR" bsp render --model models/bsp/bsp.pt --per-class 2 --out "$OUT/bsp_reconstructions.png" \
   --interp-out "$OUT/bsp_interpolation.png"
-echo "demo: outputs in $OUT (synth/scans, synth/renders, synth/bags, bsp_*.png, bsp_eval.md)"
+"$DIMR" stage1 eval --model models/stage1/stage1.pt --scans "$OUT/synth" --render 2 \
+  --render-dir "$OUT/stage1" | tee "$OUT/stage1_eval.md"
+echo "demo: outputs in $OUT (synth/scans, synth/renders, synth/bags, bsp_*.png, bsp_eval.md, stage1/*.png, stage1_eval.md)"

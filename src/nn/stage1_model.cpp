@@ -212,14 +212,16 @@ struct LossOut {
   Stage1LossTerms terms;
 };
 
-LossOut ComputeLoss(const HeadOutput& h, const BatchTensors& t) {
+// class_weight: [num_classes] or undefined (unweighted).
+LossOut ComputeLoss(const HeadOutput& h, const BatchTensors& t,
+                    const torch::Tensor& class_weight = {}) {
   LossOut out;
-  // Semantic cross-entropy, ignore -100, mean over the labelled points.
+  // Semantic cross-entropy, ignore -100, (weighted) mean over the labelled points.
   torch::Tensor sem;
   if ((t.semantic != kStage1Ignore).any().item<bool>()) {
-    sem = torch::nn::functional::cross_entropy(
-        h.semantic, t.semantic,
-        torch::nn::functional::CrossEntropyFuncOptions().ignore_index(kStage1Ignore));
+    auto options = torch::nn::functional::CrossEntropyFuncOptions().ignore_index(kStage1Ignore);
+    if (class_weight.defined()) options.weight(class_weight);
+    sem = torch::nn::functional::cross_entropy(h.semantic, t.semantic, options);
   } else {
     sem = h.semantic.sum() * 0;
   }
@@ -263,6 +265,39 @@ double Ms(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::ti
 // ---------------------------------------------------------------------------------------
 // Stage1Model
 // ---------------------------------------------------------------------------------------
+
+std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples, int num_classes,
+                                        double min_w, double max_w) {
+  if (num_classes < 1) throw InvalidArgument("SemanticClassWeights: num_classes must be >= 1");
+  if (!(min_w > 0 && min_w <= max_w)) {
+    throw InvalidArgument("SemanticClassWeights: need 0 < min_w <= max_w");
+  }
+  std::vector<double> count(num_classes, 0.0);
+  double total = 0;
+  for (const auto& s : samples) {
+    for (int c : s.semantic) {
+      if (c >= 0 && c < num_classes) {
+        count[c] += 1;
+        total += 1;
+      }
+    }
+  }
+  std::vector<float> w(num_classes, 1.0f);
+  std::vector<double> present;
+  for (double n : count) {
+    if (n > 0) present.push_back(n / total);
+  }
+  if (present.empty()) return w;
+  std::sort(present.begin(), present.end());
+  const std::size_t m = present.size();
+  const double median = m % 2 ? present[m / 2] : 0.5 * (present[m / 2 - 1] + present[m / 2]);
+  for (int c = 0; c < num_classes; ++c) {
+    if (count[c] > 0) {
+      w[c] = static_cast<float>(std::clamp(std::sqrt(median / (count[c] / total)), min_w, max_w));
+    }
+  }
+  return w;
+}
 
 void SetIntraOpThreads(int threads) {
   if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
@@ -484,6 +519,22 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
   auto& net = impl_->net;
   net->to(impl_->device);
 
+  torch::Tensor class_weight;
+  if (!opt.class_weights.empty()) {
+    if (static_cast<int>(opt.class_weights.size()) != impl_->config.num_classes) {
+      throw InvalidArgument("stage1 train: class_weights has " +
+                            std::to_string(opt.class_weights.size()) + " entries for " +
+                            std::to_string(impl_->config.num_classes) + " classes");
+    }
+    for (float w : opt.class_weights) {
+      if (!(w > 0) || !std::isfinite(w)) {
+        throw InvalidArgument("stage1 train: class weights must be finite and > 0");
+      }
+    }
+    class_weight = FromVector(opt.class_weights, torch::kFloat32,
+                              {static_cast<int64_t>(opt.class_weights.size())})
+                       .to(impl_->device);
+  }
   const int batch_size = std::min<int>(opt.batch_size, static_cast<int>(train.size()));
   Stage1Loader loader(&train, impl_->config.input, opt.augment, batch_size, opt.seed,
                       std::max(1, opt.loader_threads));
@@ -583,7 +634,7 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
       const BatchTensors t = ToTensors(batch, impl_->device);
       optimizer.zero_grad();
       const HeadOutput h = impl_->Forward(t, nullptr);
-      LossOut l = ComputeLoss(h, t);
+      LossOut l = ComputeLoss(h, t, class_weight);
       if (!std::isfinite(l.terms.total)) {
         throw Error("stage1 train: the loss became non-finite at step " + std::to_string(step + 1) +
                     " (batch " + batch.names.front() + "...); lower the learning rate");

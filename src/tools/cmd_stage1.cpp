@@ -258,6 +258,7 @@ struct TrainArgs {
   double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
   std::uint64_t seed = 123;
   bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
+  std::string class_weights = "none";
 };
 
 // Opens the per-step CSV for appending from `first_step` on: rows of a previous run at or after
@@ -307,6 +308,13 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
   y << "  batch_size: " << a.batch << "\n";
   y << "  minutes_this_run: " << minutes << "\n";
   y << "  device: " << a.device << "\n";
+  y << "  lr: " << a.lr << "\n";
+  y << "  lr_decay: " << a.lr_decay << "\n";
+  y << "  augmentation: "
+    << (a.no_augment ? "none"
+                     : (a.no_elastic ? "affine + crop (no elastic)" : "affine + elastic + crop"))
+    << "\n";
+  y << "  class_weights: " << a.class_weights << "\n";
   if (val) {
     y << "metrics_val:\n";
     y << "  semantic_miou_present: " << val->miou_present << "\n";
@@ -346,6 +354,15 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   const auto train = LoadScenes(a.train, a.limit_train, a.data_threads);
   std::vector<nn::Stage1Sample> val;
   if (!a.val.empty()) val = LoadScenes(a.val, a.val_scenes, a.data_threads);
+  if (a.class_weights == "sqrt-inverse") {
+    opt.class_weights = nn::SemanticClassWeights(train, config.num_classes);
+    std::printf("class weights (sqrt inverse frequency):");
+    for (float w : opt.class_weights) std::printf(" %.2f", w);
+    std::printf("\n");
+  } else if (a.class_weights != "none") {
+    throw InvalidArgument("--class-weights must be none or sqrt-inverse, got '" + a.class_weights +
+                          "'");
+  }
   nn::Stage1Model model(config, a.seed);
   long long points = 0;
   for (const auto& s : train) points += static_cast<long long>(s.points.size());
@@ -429,6 +446,8 @@ void SetupTrain(CLI::App& app) {
   app.add_flag("--no-augment", a->no_augment, "no augmentation");
   app.add_flag("--no-elastic", a->no_elastic, "no elastic distortion");
   app.add_flag("--rgb", a->rgb, "also feed colours");
+  app.add_option("--class-weights", a->class_weights,
+                 "semantic loss weights: none (reference) | sqrt-inverse (of class frequency)");
   app.add_flag("--fp32", a->fp32, "store the final weights as float32 (default float16)");
   app.add_flag("--quiet", a->quiet, "no progress bar");
   app.callback([a, &app]() { RunTrain(*a, CommandLine(app)); });

@@ -33,7 +33,9 @@ nn::Stage1Sample Stage1SampleFromScene(const data::SynthScene& scene) {
     out.semantic =
         in.rfs_class >= 0 && in.rfs_class < nn::kStage1Classes ? in.rfs_class : nn::kStage1Ignore;
     out.cad_class = in.cad_class >= 0 && in.cad_class < 8 ? in.cad_class : -1;
-    out.has_heading = out.cad_class >= 0;
+    // A heading exists only where a CAD model is aligned (SynthScan, or a Scan2CAD model linked
+    // by RelabelWithScan2Cad); real ScanNet instances without one carry no heading label.
+    out.has_heading = out.cad_class >= 0 && !in.model_id.empty();
     out.heading = in.box.heading;
     s.instances.push_back(out);
   }

@@ -240,3 +240,41 @@ TEST(Stage1Model, CheckpointResumeContinuesTraining) {
 
 }  // namespace
 }  // namespace dimr::nn
+
+namespace dimr::nn {
+namespace {
+
+TEST(Stage1Model, SemanticClassWeightsFromFrequencies) {
+  Stage1Sample s;
+  auto add = [&](int cls, int n) {
+    for (int i = 0; i < n; ++i) {
+      s.points.emplace_back(0.01f * static_cast<float>(s.points.size()), 0, 0);
+      s.semantic.push_back(cls);
+      s.instance.push_back(-1);
+    }
+  };
+  add(0, 64);
+  add(4, 16);
+  add(6, 4);
+  add(kStage1Ignore, 50);  // ignored points do not count
+  const std::vector<float> w = SemanticClassWeights({s});
+  ASSERT_EQ(w.size(), static_cast<std::size_t>(kStage1Classes));
+  // Frequencies 64/84, 16/84, 4/84 -> median 16/84 -> weights sqrt(16/64), 1, sqrt(16/4).
+  EXPECT_NEAR(w[0], 0.5, 1e-6);
+  EXPECT_NEAR(w[4], 1.0, 1e-6);
+  EXPECT_NEAR(w[6], 2.0, 1e-6);
+  EXPECT_NEAR(w[1], 1.0, 1e-6);  // absent class
+  const std::vector<float> c = SemanticClassWeights({s}, kStage1Classes, 0.6, 1.5);
+  EXPECT_NEAR(c[0], 0.6, 1e-6);
+  EXPECT_NEAR(c[6], 1.5, 1e-6);
+  EXPECT_THROW(SemanticClassWeights({s}, kStage1Classes, 2.0, 1.0), InvalidArgument);
+  // A wrong-sized weight vector is rejected by the trainer.
+  Stage1Model model(TinyConfig());
+  Stage1TrainOptions opt;
+  opt.class_weights = {1.0f, 2.0f};
+  std::vector<Stage1Sample> one{TinyRoom(8)};
+  EXPECT_THROW(model.Train(one, opt), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::nn

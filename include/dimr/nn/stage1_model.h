@@ -47,6 +47,9 @@ struct Stage1TrainOptions {
   double max_minutes = 0;         // stop (after checkpointing) when exceeded; 0 = no limit
   int validate_every_epochs = 1;  // calls the epoch callback every k epochs and at the end
   bool progress = true;           // progress bar with the loss terms on stderr
+  // Per-class weights of the semantic cross-entropy (num_classes entries; empty = unweighted,
+  // the reference). See SemanticClassWeights.
+  std::vector<float> class_weights;
 };
 
 struct Stage1LossTerms {
@@ -75,6 +78,13 @@ struct Stage1Output {
 struct Stage1Timing {
   double voxelize_ms = 0, unet_ms = 0, heads_ms = 0;
 };
+
+// Class weights w_c = clamp(sqrt(median_f / f_c), min_w, max_w) from the labelled points of
+// `samples` (f_c = share of class c among the labelled points, median over the classes present);
+// classes without points get 1. Counters the wall/floor majority in short CPU schedules.
+std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples,
+                                        int num_classes = kStage1Classes, double min_w = 0.25,
+                                        double max_w = 4.0);
 
 // Intra-op threads of the network (at::set_num_threads), for torch-free callers.
 void SetIntraOpThreads(int threads);

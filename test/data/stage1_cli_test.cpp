@@ -1,0 +1,119 @@
+// End-to-end stage-1 commands on two small SynthScan rooms: `dimr synth` -> `dimr stage1
+// prepare` -> `dimr train stage1` (tiny network, a few steps) -> `dimr stage1 eval` (JSON,
+// PNG) -> `dimr bench stage1`; a corrupt model file gives a clear error.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <regex>
+#include <string>
+
+namespace {
+
+namespace fs = std::filesystem;
+
+#ifdef DIMR_CLI
+std::pair<int, std::string> RunCli(const std::string& args) {
+  std::string out;
+  FILE* p = ::popen((std::string(DIMR_CLI) + " " + args + " 2>&1").c_str(), "r");
+  if (p == nullptr) return {-1, out};
+  char buf[4096];
+  while (std::fgets(buf, sizeof(buf), p)) out += buf;
+  return {::pclose(p), out};
+}
+
+std::string ReadText(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+}
+
+int CountLines(const fs::path& p) {
+  std::ifstream in(p);
+  int n = 0;
+  std::string line;
+  while (std::getline(in, line)) n += !line.empty();
+  return n;
+}
+
+TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
+  if (RunCli("train stage1 --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
+  const fs::path dir = fs::temp_directory_path() / ("stage1_cli_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string d = dir.string();
+
+  auto [rc, out] = RunCli(
+      "synth --scenes 2 --seed 5 --split val --frames-per-scene 16 --quiet --out " + d + "/synth");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = RunCli("stage1 prepare --scans " + d + "/synth --out " + d + "/cache.bin");
+  ASSERT_EQ(rc, 0) << out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(out, m, std::regex("2 scenes, ([0-9]+) points"))) << out;
+  const long long points = std::stoll(m[1]);
+  ASSERT_GT(points, 1000);
+
+  const std::string model = d + "/model";
+  std::tie(rc, out) =
+      RunCli("train stage1 --train " + d + "/cache.bin --val " + d + "/cache.bin --out " + model +
+             " --config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25' --epochs 2 --batch 1 "
+             "--threads 1 --quiet --seed 3");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("after 4 steps"), std::string::npos) << out;
+  ASSERT_TRUE(fs::exists(model + "/stage1.pt"));
+  EXPECT_EQ(CountLines(model + "/train_log.csv"), 1 + 4);  // header + 2 epochs x 2 scenes
+  EXPECT_GE(CountLines(model + "/val_log.csv"), 2);        // header + at least one epoch
+  const std::string card = ReadText(model + "/model.yaml");
+  EXPECT_TRUE(std::regex_search(card, std::regex("sha256: [0-9a-f]{64}\n"))) << card;
+  EXPECT_NE(card.find("architecture: \"scale=10 rgb=0 widths=8,16 reps=1 classes=25\""),
+            std::string::npos)
+      << card;
+  EXPECT_NE(card.find("semantic_miou_present:"), std::string::npos) << card;
+
+  // Evaluation: JSON with every point counted, metrics in range, one PNG.
+  std::tie(rc, out) =
+      RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin --json " + d +
+             "/eval.json --render 1 --render-dir " + d + "/png");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json j = nlohmann::json::parse(ReadText(d + "/eval.json"));
+  EXPECT_EQ(j["scenes"].get<int>(), 2);
+  EXPECT_EQ(j["points"].get<long long>(), points);
+  EXPECT_GE(j["miou_present"].get<double>(), 0.0);
+  EXPECT_LE(j["miou_present"].get<double>(), 1.0);
+  EXPECT_GE(j["accuracy"].get<double>(), 0.0);
+  EXPECT_GT(j["classes_present"].get<int>(), 2);  // at least wall, floor and one object class
+  EXPECT_TRUE(j["instance"].contains("chair"));
+  int pngs = 0;
+  for (const auto& e : fs::directory_iterator(d + "/png")) {
+    EXPECT_EQ(ReadText(e.path()).substr(1, 3), "PNG");
+    ++pngs;
+  }
+  EXPECT_EQ(pngs, 1);
+
+  // Benchmark table + JSON.
+  std::tie(rc, out) =
+      RunCli("bench stage1 --model " + model + "/stage1.pt --rooms 1 --points 5000 " +
+             "--repeats 1 --json " + d + "/bench.json");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("| U-Net |"), std::string::npos) << out;
+  const nlohmann::json b = nlohmann::json::parse(ReadText(d + "/bench.json"));
+  EXPECT_EQ(b["points_per_room"].get<int>(), 5000);
+  EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
+  EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
+
+  // A corrupt model file: non-zero exit, the message names the file.
+  std::ofstream(d + "/junk.pt") << "definitely not a model";
+  std::tie(rc, out) = RunCli("stage1 eval --model " + d + "/junk.pt --scans " + d + "/cache.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("junk.pt"), std::string::npos) << out;
+  // Missing training data: non-zero exit naming the path.
+  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/nothing --out " + d + "/m2");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("nothing"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+#endif
+
+}  // namespace
