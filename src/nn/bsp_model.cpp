@@ -22,6 +22,7 @@
 #include <sstream>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/model_archive.h"
 
 namespace dimr::nn {
 
@@ -283,78 +284,21 @@ std::int64_t BspModel::NumParameters() const {
 }
 
 void BspModel::Save(const std::string& path, bool half) const {
-  torch::serialize::OutputArchive archive;
-  archive.write("dimr_kind", c10::IValue(std::string("bsp_cvae")));
-  archive.write("dimr_config", c10::IValue(impl_->config.ToString()));
-  archive.write("dimr_phase", c10::IValue(static_cast<int64_t>(impl_->phase)));
-  for (const auto& item : impl_->net->named_parameters()) {
-    auto t = item.value().detach().to(torch::kCPU);
-    archive.write("param/" + item.key(), half ? t.to(torch::kHalf) : t, /*is_buffer=*/true);
-  }
-  for (const auto& item : impl_->net->named_buffers()) {
-    auto t = item.value().detach().to(torch::kCPU);
-    if (half && t.is_floating_point()) t = t.to(torch::kHalf);
-    archive.write("buffer/" + item.key(), t, /*is_buffer=*/true);
-  }
-  try {
-    archive.save_to(path);
-  } catch (const c10::Error& e) {
-    throw Error("cannot write BSP model '" + path + "': " + e.what_without_backtrace());
-  }
+  SaveModelArchive(*impl_->net, path, "bsp_cvae", impl_->config.ToString(), half,
+                   {{"phase", impl_->phase}});
 }
 
 BspModel BspModel::Load(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw ParseError(path, "file does not exist");
-  torch::serialize::InputArchive archive;
-  c10::IValue kind, config_text, phase;
-  try {
-    archive.load_from(path);
-    if (!archive.try_read("dimr_kind", kind) || !kind.isString() ||
-        kind.toStringRef() != "bsp_cvae") {
-      throw ParseError(path, "not a dimr BSP-CVAE model (missing or wrong 'dimr_kind')");
-    }
-    if (!archive.try_read("dimr_config", config_text) || !config_text.isString()) {
-      throw ParseError(path, "missing 'dimr_config'");
-    }
-    if (!archive.try_read("dimr_phase", phase) || !phase.isInt()) {
-      throw ParseError(path, "missing 'dimr_phase'");
-    }
-  } catch (const c10::Error& e) {
-    throw ParseError(
-        path, std::string("corrupt or unreadable model archive: ") + e.what_without_backtrace());
-  }
+  const ModelArchiveReader archive(path, "bsp_cvae", "BSP-CVAE", {"phase"});
   BspConfig config;
   try {
-    config = BspConfig::FromString(config_text.toStringRef());
+    config = BspConfig::FromString(archive.config());
   } catch (const InvalidArgument& e) {
     throw ParseError(path, e.what());
   }
   BspModel model(config);
-  model.impl_->phase = static_cast<int>(phase.toInt());
-  torch::NoGradGuard no_grad;
-  auto load_into = [&](const std::string& key, torch::Tensor& dst) {
-    torch::Tensor t;
-    bool found = false;
-    try {
-      found = archive.try_read(key, t, /*is_buffer=*/true);
-    } catch (const c10::Error& e) {
-      throw ParseError(path, "tensor '" + key + "' unreadable: " + e.what_without_backtrace());
-    }
-    if (!found) throw ParseError(path, "missing tensor '" + key + "'");
-    if (t.sizes() != dst.sizes()) {
-      std::ostringstream msg;
-      msg << "tensor '" << key << "' has shape " << t.sizes() << ", the model expects "
-          << dst.sizes();
-      throw ParseError(path, msg.str());
-    }
-    dst.copy_(t.to(dst.dtype()));
-  };
-  for (auto& item : model.impl_->net->named_parameters()) {
-    load_into("param/" + item.key(), item.value());
-  }
-  for (auto& item : model.impl_->net->named_buffers()) {
-    load_into("buffer/" + item.key(), item.value());
-  }
+  model.impl_->phase = static_cast<int>(archive.Int("phase"));
+  archive.LoadInto(*model.impl_->net);
   return model;
 }
 

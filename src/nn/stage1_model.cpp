@@ -22,6 +22,7 @@
 #include <sstream>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/model_archive.h"
 #include "dimr/nn/sparse_ops.h"
 #include "dimr/nn/sparse_unet.h"
 
@@ -346,76 +347,19 @@ std::int64_t Stage1Model::NumParameters() const {
 }
 
 void Stage1Model::Save(const std::string& path, bool half) const {
-  torch::serialize::OutputArchive archive;
-  archive.write("dimr_kind", c10::IValue(std::string("stage1")));
-  archive.write("dimr_config", c10::IValue(impl_->config.ToString()));
-  for (const auto& item : impl_->net->named_parameters()) {
-    auto t = item.value().detach().to(torch::kCPU);
-    archive.write("param/" + item.key(), half ? t.to(torch::kHalf) : t, /*is_buffer=*/true);
-  }
-  for (const auto& item : impl_->net->named_buffers()) {
-    auto t = item.value().detach().to(torch::kCPU);
-    if (half && t.is_floating_point()) t = t.to(torch::kHalf);
-    archive.write("buffer/" + item.key(), t, /*is_buffer=*/true);
-  }
-  try {
-    archive.save_to(path);
-  } catch (const c10::Error& e) {
-    throw Error("cannot write stage-1 model '" + path + "': " + e.what_without_backtrace());
-  }
+  SaveModelArchive(*impl_->net, path, "stage1", impl_->config.ToString(), half);
 }
 
 Stage1Model Stage1Model::Load(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw ParseError(path, "file does not exist");
-  torch::serialize::InputArchive archive;
-  c10::IValue kind, config_text;
-  try {
-    archive.load_from(path);
-    if (!archive.try_read("dimr_kind", kind) || !kind.isString() ||
-        kind.toStringRef() != "stage1") {
-      throw ParseError(path, "not a dimr stage-1 model (missing or wrong 'dimr_kind')");
-    }
-    if (!archive.try_read("dimr_config", config_text) || !config_text.isString()) {
-      throw ParseError(path, "missing 'dimr_config'");
-    }
-  } catch (const c10::Error& e) {
-    throw ParseError(
-        path, std::string("corrupt or unreadable model archive: ") + e.what_without_backtrace());
-  }
+  const ModelArchiveReader archive(path, "stage1", "stage-1");
   Stage1Config config;
   try {
-    config = Stage1Config::FromString(config_text.toStringRef());
+    config = Stage1Config::FromString(archive.config());
   } catch (const InvalidArgument& e) {
     throw ParseError(path, e.what());
   }
   Stage1Model model(config);
-  torch::NoGradGuard no_grad;
-  auto load_into = [&](const std::string& key, torch::Tensor& dst) {
-    torch::Tensor t;
-    bool found = false;
-    try {
-      found = archive.try_read(key, t, /*is_buffer=*/true);
-    } catch (const c10::Error& e) {
-      throw ParseError(path, "tensor '" + key + "' unreadable: " + e.what_without_backtrace());
-    }
-    if (!found) throw ParseError(path, "missing tensor '" + key + "'");
-    if (t.sizes() != dst.sizes()) {
-      std::ostringstream msg;
-      msg << "tensor '" << key << "' has shape " << t.sizes() << ", the model expects "
-          << dst.sizes();
-      throw ParseError(path, msg.str());
-    }
-    if (t.is_floating_point() && !torch::isfinite(t).all().item<bool>()) {
-      throw ParseError(path, "tensor '" + key + "' holds NaN or infinite values");
-    }
-    dst.copy_(t.to(dst.dtype()));
-  };
-  for (auto& item : model.impl_->net->named_parameters()) {
-    load_into("param/" + item.key(), item.value());
-  }
-  for (auto& item : model.impl_->net->named_buffers()) {
-    load_into("buffer/" + item.key(), item.value());
-  }
+  archive.LoadInto(*model.impl_->net);
   return model;
 }
 

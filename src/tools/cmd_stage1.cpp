@@ -454,8 +454,33 @@ void SetupTrain(CLI::App& app) {
 }
 
 // ---------------------------------------------------------------- eval
+// "o0.03,s0.01,s0.03,s0.05": clustering passes on original (o) or shifted (s) coordinates.
+std::vector<pipeline::ClusterPass> ParsePasses(const std::string& text) {
+  std::vector<pipeline::ClusterPass> passes;
+  std::istringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    pipeline::ClusterPass p;
+    std::size_t used = 0;
+    try {
+      if (item.size() < 2 || (item[0] != 'o' && item[0] != 's')) throw std::invalid_argument(item);
+      p.shifted = item[0] == 's';
+      p.radius = std::stod(item.substr(1), &used);
+    } catch (const std::logic_error&) {
+      used = 0;
+    }
+    if (used == 0 || used + 1 != item.size() || !(p.radius > 0)) {
+      throw InvalidArgument("--passes: bad pass '" + item +
+                            "' (expected o<radius> or s<radius>, e.g. s0.03)");
+    }
+    passes.push_back(p);
+  }
+  if (passes.empty()) throw InvalidArgument("--passes: no pass given");
+  return passes;
+}
+
 struct EvalArgs {
-  std::string model = "models/stage1/stage1.pt", scans, json, render_dir, scene_list;
+  std::string model = "models/stage1/stage1.pt", scans, json, render_dir, scene_list, passes;
   int limit = 0, render = 0, threads = 2;
   double nms = 0.3;
   int min_points = 100;
@@ -467,15 +492,26 @@ void RunEval(const EvalArgs& a) {
   pipeline::Stage1InstanceConfig cfg;
   cfg.nms_iou = a.nms;
   cfg.min_points = a.min_points;
+  if (!a.passes.empty()) cfg.clustering.passes = ParsePasses(a.passes);
   cfg.Validate();
   std::printf("model %s (%s), %zu scenes\n", a.model.c_str(), model.config().ToString().c_str(),
               scenes.size());
+  std::string passes;
+  for (const auto& p : cfg.clustering.passes) {
+    passes += (passes.empty() ? "" : ",") + std::string(p.shifted ? "s" : "o") + Fmt(p.radius);
+  }
+  std::printf("clustering passes %s, min %d points per cluster, NMS %.2f, keep > %d points\n",
+              passes.c_str(), cfg.clustering.min_points, cfg.nms_iou, cfg.min_points);
   const Stage1Eval r = EvaluateStage1(model, scenes, cfg, a.render > 0);
   PrintEval(r);
   if (!a.json.empty()) {
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
-    f << EvalJson(r).dump(2) << "\n";
+    nlohmann::json j = EvalJson(r);
+    j["clustering_passes"] = passes;
+    j["nms_iou"] = cfg.nms_iou;
+    j["min_points"] = cfg.min_points;
+    f << j.dump(2) << "\n";
   }
   if (a.render > 0) {
     const std::string dir = a.render_dir.empty() ? "out/stage1_render" : a.render_dir;
@@ -497,6 +533,9 @@ void SetupEval(CLI::App& app) {
   app.add_option("--threads", a->threads, "threads reading scene folders");
   app.add_option("--nms", a->nms, "point-IoU NMS threshold");
   app.add_option("--min-points", a->min_points, "keep instances with more points than this");
+  app.add_option("--passes", a->passes,
+                 "clustering passes, default the reference's o0.03,s0.01,s0.03,s0.05 "
+                 "(o = original, s = shifted coordinates, radius in metres)");
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");

@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "cli_run.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/scan2cad_io.h"
 #include "dimr/data/scannet_io.h"
@@ -448,14 +449,7 @@ TEST(Scan2CadRelabelTest, BadInputsThrowNamingSceneOrModel) {
 
 // ---------------------------------------------------------------- (e) the CLI path
 #ifdef DIMR_CLI
-std::pair<int, std::string> RunCli(const std::string& args) {
-  std::string out;
-  FILE* p = ::popen((std::string(DIMR_CLI) + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return {-1, out};
-  char buf[4096];
-  while (std::fgets(buf, sizeof(buf), p)) out += buf;
-  return {::pclose(p), out};
-}
+using dimr::testing::RunCli;
 
 nlohmann::json InspectAll(const fs::path& cache, const fs::path& json) {
   auto [rc, out] = RunCli("stage1 inspect " + cache.string() + " --json " + json.string());

@@ -11,19 +11,14 @@
 #include <regex>
 #include <string>
 
+#include "cli_run.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
 #ifdef DIMR_CLI
-std::pair<int, std::string> RunCli(const std::string& args) {
-  std::string out;
-  FILE* p = ::popen((std::string(DIMR_CLI) + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return {-1, out};
-  char buf[4096];
-  while (std::fgets(buf, sizeof(buf), p)) out += buf;
-  return {::pclose(p), out};
-}
+using dimr::testing::RunCli;
 
 std::string ReadText(const fs::path& p) {
   std::ifstream in(p, std::ios::binary);

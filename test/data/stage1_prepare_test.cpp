@@ -8,6 +8,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "cli_run.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/scannet_io.h"
 #include "dimr/data/synthscan.h"
@@ -19,14 +20,7 @@ namespace fs = std::filesystem;
 using geometry::Vec3;
 
 #ifdef DIMR_CLI
-std::pair<int, std::string> RunCli(const std::string& args) {
-  std::string out;
-  FILE* p = ::popen((std::string(DIMR_CLI) + " " + args + " 2>&1").c_str(), "r");
-  if (p == nullptr) return {-1, out};
-  char buf[4096];
-  while (std::fgets(buf, sizeof(buf), p)) out += buf;
-  return {::pclose(p), out};
-}
+using dimr::testing::RunCli;
 
 // A floor (instance 1, 40 points), a wall (instance 2, 20 points), a chair (instance 3, CAD
 // chair, box heading 1.0 rad = bin 2, 15 points) and 5 unlabelled points (no instance).
