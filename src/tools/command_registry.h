@@ -31,7 +31,16 @@ inline std::string CommandLine(const CLI::App& app) {
   for (const CLI::Option* o : app.get_options()) {
     if (o->count() == 0 || o->get_name() == "--help") continue;
     out += " " + o->get_name();
-    for (const auto& r : o->results()) out += " " + r;
+    for (const auto& r : o->results()) {
+      // Quote values a shell would split or expand, so the line can be pasted back.
+      if (r.empty() || r.find_first_of(" \t'\"$`\\*?;&|<>()") != std::string::npos) {
+        std::string q = "'";
+        for (char c : r) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+        out += " " + q + "'";
+      } else {
+        out += " " + r;
+      }
+    }
   }
   return out;
 }
