@@ -510,36 +510,16 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   int total_epochs = opt.epochs_phase0 + opt.epochs_phase1 + opt.epochs_phase2;
   int start_epoch = 0;
   torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
-  const std::string optim_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".optim";
-  const std::string epoch_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".epoch";
-  if (opt.resume && !opt.checkpoint_path.empty() && std::filesystem::exists(opt.checkpoint_path) &&
-      std::filesystem::exists(epoch_path)) {
-    BspModel loaded = Load(opt.checkpoint_path);
-    if (loaded.config().ToString() != impl_->config.ToString()) {
-      throw InvalidArgument("checkpoint '" + opt.checkpoint_path +
-                            "' has a different configuration: " + loaded.config().ToString());
-    }
-    {
-      torch::NoGradGuard no_grad;
-      auto src = loaded.impl_->net->named_parameters();
-      for (auto& item : net->named_parameters()) item.value().copy_(src[item.key()]);
-      auto srcb = loaded.impl_->net->named_buffers();
-      for (auto& item : net->named_buffers()) item.value().copy_(srcb[item.key()]);
-    }
-    std::ifstream ef(epoch_path);
-    int saved_phase0_end = -1;
-    ef >> start_epoch >> saved_phase0_end;
+  const std::vector<int64_t> resumed =
+      opt.resume ? ResumeTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "bsp_cvae",
+                                            "BSP-CVAE", impl_->config.ToString(), 2)
+                 : std::vector<int64_t>{};
+  if (!resumed.empty()) {
+    start_epoch = static_cast<int>(resumed[0]);
+    const int saved_phase0_end = static_cast<int>(resumed[1]);
     if (saved_phase0_end >= 0 && saved_phase0_end < phase0_end) {
       total_epochs -= phase0_end - saved_phase0_end;
       phase0_end = saved_phase0_end;
-    }
-    if (std::filesystem::exists(optim_path)) {
-      try {
-        torch::load(optimizer, optim_path);
-      } catch (const c10::Error&) {
-        std::fprintf(stderr, "warning: optimizer state '%s' unreadable, restarting Adam\n",
-                     optim_path.c_str());
-      }
     }
     std::fprintf(stderr, "resuming from %s at epoch %d\n", opt.checkpoint_path.c_str(),
                  start_epoch);
@@ -553,16 +533,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   const auto t_start = std::chrono::steady_clock::now();
   auto checkpoint = [&](int epoch_done) {
     if (opt.checkpoint_path.empty()) return;
-    const std::string tmp = opt.checkpoint_path + ".tmp";
-    net->to(torch::kCPU);
-    const auto saved_device = impl_->device;
-    impl_->device = torch::kCPU;
-    Save(tmp);
-    impl_->device = saved_device;
-    net->to(impl_->device);
-    std::filesystem::rename(tmp, opt.checkpoint_path);
-    torch::save(optimizer, optim_path);
-    std::ofstream(epoch_path) << epoch_done << " " << phase0_end << "\n";
+    SaveTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "bsp_cvae",
+                           impl_->config.ToString(), {epoch_done, phase0_end},
+                           {{"phase", impl_->phase}});
   };
 
   for (int epoch = start_epoch; epoch < total_epochs; ++epoch) {

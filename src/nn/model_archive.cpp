@@ -2,7 +2,9 @@
 
 #include <torch/serialize.h>
 
+#include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <sstream>
 
 #include "dimr/geometry/error.h"
@@ -89,6 +91,59 @@ void ModelArchiveReader::LoadInto(torch::nn::Module& module) const {
   };
   for (auto& item : module.named_parameters()) load_into("param/" + item.key(), item.value());
   for (auto& item : module.named_buffers()) load_into("buffer/" + item.key(), item.value());
+}
+
+void SaveTrainingCheckpoint(const torch::nn::Module& module, torch::optim::Optimizer& optimizer,
+                            const std::string& path, const std::string& kind,
+                            const std::string& config, const std::vector<std::int64_t>& state,
+                            const std::map<std::string, std::int64_t>& ints) {
+  SaveModelArchive(module, path + ".tmp", kind, config, /*half=*/false, ints);
+  std::filesystem::rename(path + ".tmp", path);
+  torch::save(optimizer, path + ".optim.tmp");
+  std::filesystem::rename(path + ".optim.tmp", path + ".optim");
+  {
+    std::ofstream f(path + ".state.tmp");
+    for (std::size_t i = 0; i < state.size(); ++i) f << (i ? " " : "") << state[i];
+    f << "\n";
+    if (!f) throw Error("cannot write training state '" + path + ".state'");
+  }
+  std::filesystem::rename(path + ".state.tmp", path + ".state");
+}
+
+std::vector<std::int64_t> ResumeTrainingCheckpoint(torch::nn::Module& module,
+                                                   torch::optim::Optimizer& optimizer,
+                                                   const std::string& path, const std::string& kind,
+                                                   const std::string& what,
+                                                   const std::string& config,
+                                                   std::size_t state_size) {
+  const std::string state_path = path + ".state";
+  if (path.empty() || !std::filesystem::exists(path) || !std::filesystem::exists(state_path)) {
+    return {};
+  }
+  const ModelArchiveReader archive(path, kind, what);
+  if (archive.config() != config) {
+    throw InvalidArgument("checkpoint '" + path + "' has a different configuration: " +
+                          archive.config() + " (this run: " + config + ")");
+  }
+  archive.LoadInto(module);
+  std::vector<std::int64_t> state;
+  std::ifstream f(state_path);
+  for (std::int64_t v; f >> v;) state.push_back(v);
+  if (state.size() < state_size) {
+    throw ParseError(state_path, "expected " + std::to_string(state_size) +
+                                     " integers (the trainer's position), found " +
+                                     std::to_string(state.size()));
+  }
+  const std::string optim_path = path + ".optim";
+  if (std::filesystem::exists(optim_path)) {
+    try {
+      torch::load(optimizer, optim_path);
+    } catch (const c10::Error&) {
+      std::fprintf(stderr, "warning: optimizer state '%s' unreadable, restarting the optimizer\n",
+                   optim_path.c_str());
+    }
+  }
+  return state;
 }
 
 }  // namespace dimr::nn

@@ -486,42 +486,20 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
   const int64_t total_steps = static_cast<int64_t>(per_epoch) * opt.epochs;
 
   torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
-  const std::string optim_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".optim";
-  const std::string state_path = opt.checkpoint_path.empty() ? "" : opt.checkpoint_path + ".state";
   int64_t step = 0;  // completed steps
-  if (opt.resume && !opt.checkpoint_path.empty() && std::filesystem::exists(opt.checkpoint_path) &&
-      std::filesystem::exists(state_path)) {
-    Stage1Model loaded = Load(opt.checkpoint_path);
-    if (loaded.config().ToString() != impl_->config.ToString()) {
-      throw InvalidArgument("stage1 train: checkpoint '" + opt.checkpoint_path +
-                            "' has a different configuration: " + loaded.config().ToString());
-    }
-    {
-      torch::NoGradGuard no_grad;
-      auto src = loaded.impl_->net->named_parameters();
-      for (auto& item : net->named_parameters()) item.value().copy_(src[item.key()]);
-      auto srcb = loaded.impl_->net->named_buffers();
-      for (auto& item : net->named_buffers()) item.value().copy_(srcb[item.key()]);
-    }
-    std::ifstream sf(state_path);
-    int64_t saved_per_epoch = 0;
-    if (!(sf >> step >> saved_per_epoch) || step < 0) {
-      throw ParseError(state_path, "unreadable training state (expected 'step batches_per_epoch')");
-    }
-    if (saved_per_epoch != per_epoch) {
+  const std::vector<int64_t> resumed =
+      opt.resume ? ResumeTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "stage1",
+                                            "stage-1", impl_->config.ToString(), 2)
+                 : std::vector<int64_t>{};
+  if (!resumed.empty()) {
+    step = resumed[0];
+    if (step < 0) throw ParseError(opt.checkpoint_path + ".state", "negative step");
+    if (resumed[1] != per_epoch) {
       std::fprintf(stderr,
                    "warning: %s: %lld batches per epoch before, %d now (other data or batch "
                    "size); continuing at step %lld\n",
-                   state_path.c_str(), static_cast<long long>(saved_per_epoch), per_epoch,
+                   opt.checkpoint_path.c_str(), static_cast<long long>(resumed[1]), per_epoch,
                    static_cast<long long>(step));
-    }
-    if (std::filesystem::exists(optim_path)) {
-      try {
-        torch::load(optimizer, optim_path);
-      } catch (const c10::Error&) {
-        std::fprintf(stderr, "warning: optimizer state '%s' unreadable, restarting Adam\n",
-                     optim_path.c_str());
-      }
     }
     std::fprintf(stderr, "resuming from %s at step %lld\n", opt.checkpoint_path.c_str(),
                  static_cast<long long>(step));
@@ -529,18 +507,8 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
 
   auto checkpoint = [&]() {
     if (opt.checkpoint_path.empty()) return;
-    const std::string tmp = opt.checkpoint_path + ".tmp";
-    net->to(torch::kCPU);
-    const auto saved_device = impl_->device;
-    impl_->device = torch::kCPU;
-    Save(tmp);
-    impl_->device = saved_device;
-    net->to(impl_->device);
-    std::filesystem::rename(tmp, opt.checkpoint_path);
-    torch::save(optimizer, optim_path + ".tmp");
-    std::filesystem::rename(optim_path + ".tmp", optim_path);
-    std::ofstream(state_path + ".tmp") << step << " " << per_epoch << "\n";
-    std::filesystem::rename(state_path + ".tmp", state_path);
+    SaveTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "stage1", impl_->config.ToString(),
+                           {step, per_epoch});
   };
   auto run_epoch_callback = [&](int epoch) {
     if (!on_epoch) return;

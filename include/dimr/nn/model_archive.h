@@ -6,6 +6,7 @@
 #pragma once
 
 #include <torch/nn/module.h>
+#include <torch/optim/optimizer.h>
 
 #include <cstdint>
 #include <map>
@@ -39,5 +40,24 @@ class ModelArchiveReader {
   struct Archive;
   std::unique_ptr<Archive> archive_;
 };
+
+// Training checkpoints of the trainers: `path` (a model archive), `path.optim` (optimizer state)
+// and `path.state` (one line of integers: the trainer's position, e.g. the step). Each file is
+// written to a temporary name and renamed, so an interrupted write never corrupts a checkpoint.
+void SaveTrainingCheckpoint(const torch::nn::Module& module, torch::optim::Optimizer& optimizer,
+                            const std::string& path, const std::string& kind,
+                            const std::string& config, const std::vector<std::int64_t>& state,
+                            const std::map<std::string, std::int64_t>& ints = {});
+// If `path` and `path.state` exist: checks the kind and that the stored config equals `config`
+// (dimr::InvalidArgument otherwise), loads the weights into `module` and the optimizer state
+// (a warning and a fresh optimizer if that file is unreadable) and returns the state integers
+// (dimr::ParseError if there are fewer than `state_size`). Returns {} when there is nothing to
+// resume.
+std::vector<std::int64_t> ResumeTrainingCheckpoint(torch::nn::Module& module,
+                                                   torch::optim::Optimizer& optimizer,
+                                                   const std::string& path, const std::string& kind,
+                                                   const std::string& what,
+                                                   const std::string& config,
+                                                   std::size_t state_size);
 
 }  // namespace dimr::nn
