@@ -67,8 +67,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
       << card;
   EXPECT_NE(card.find("semantic_miou_present:"), std::string::npos) << card;
   // The recorded command can be pasted back into a shell: values with spaces are quoted.
-  EXPECT_NE(card.find("--config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25'"),
-            std::string::npos)
+  EXPECT_NE(card.find("--config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25'"), std::string::npos)
       << card;
 
   // Evaluation: JSON with every point counted, metrics in range, one PNG.
