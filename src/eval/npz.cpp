@@ -7,6 +7,7 @@
 #include <sstream>
 #include <string>
 
+#include "dimr/geometry/crc32.h"
 #include "dimr/geometry/error.h"
 
 #ifdef DIMR_HAVE_ZLIB
@@ -21,22 +22,6 @@ std::uint32_t U32(const std::uint8_t* p) {
          (std::uint32_t(p[3]) << 24);
 }
 std::uint16_t U16(const std::uint8_t* p) { return std::uint16_t(p[0] | (p[1] << 8)); }
-
-// CRC-32 (IEEE 802.3, reflected, as zip uses).
-std::uint32_t Crc32(const std::string& s) {
-  static const auto kTable = [] {
-    std::array<std::uint32_t, 256> t{};
-    for (std::uint32_t i = 0; i < 256; ++i) {
-      std::uint32_t c = i;
-      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
-    }
-    return t;
-  }();
-  std::uint32_t c = 0xffffffffu;
-  for (unsigned char ch : s) c = kTable[(c ^ ch) & 0xff] ^ (c >> 8);
-  return c ^ 0xffffffffu;
-}
 
 // Value of key `key` in the npy header dict text, e.g. 'descr': '<f8' -> "<f8".
 std::string DictValue(const std::string& header, const std::string& key,
@@ -284,7 +269,7 @@ void WriteNpz(const std::string& path, const std::map<std::string, NpyArray>& ar
       }
     }
     const std::string name = key + ".npy";
-    const std::uint32_t crc = Crc32(npy);
+    const std::uint32_t crc = geometry::Crc32(npy.data(), npy.size());
     const std::uint32_t offset = static_cast<std::uint32_t>(zip.size());
     put32(&zip, 0x04034b50);
     put16(&zip, 20);

@@ -13,6 +13,7 @@
 #include <string>
 #include <vector>
 
+#include "dimr/geometry/crc32.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::tools {
@@ -24,21 +25,6 @@ namespace {
 // ---------------------------------------------------------------------------------------
 // PNG encoding.
 // ---------------------------------------------------------------------------------------
-std::uint32_t Crc32(const std::uint8_t* data, std::size_t n, std::uint32_t crc = 0) {
-  static const std::array<std::uint32_t, 256> kTable = [] {
-    std::array<std::uint32_t, 256> t{};
-    for (std::uint32_t i = 0; i < 256; ++i) {
-      std::uint32_t c = i;
-      for (int k = 0; k < 8; ++k) c = (c & 1) ? 0xedb88320u ^ (c >> 1) : c >> 1;
-      t[i] = c;
-    }
-    return t;
-  }();
-  crc = ~crc;
-  for (std::size_t i = 0; i < n; ++i) crc = kTable[(crc ^ data[i]) & 0xff] ^ (crc >> 8);
-  return ~crc;
-}
-
 class BitWriter {
  public:
   // Writes `n` bits of `value`, least significant first (deflate's bit order).
@@ -161,7 +147,7 @@ void WritePng(const std::string& path, int width, int height,
     std::vector<std::uint8_t> body(type, type + 4);
     body.insert(body.end(), data.begin(), data.end());
     png.insert(png.end(), body.begin(), body.end());
-    const std::uint32_t crc = Crc32(body.data(), body.size());
+    const std::uint32_t crc = geometry::Crc32(body.data(), body.size());
     for (int k = 3; k >= 0; --k) png.push_back(static_cast<std::uint8_t>(crc >> (8 * k)));
   };
   std::vector<std::uint8_t> ihdr;
