@@ -538,7 +538,10 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
     net->train();
     Stage1Batch batch;
     while (step < total_steps && loader.Next(&batch)) {
-      const double progress = static_cast<double>(step) / static_cast<double>(total_steps);
+      double progress = static_cast<double>(step) / static_cast<double>(total_steps);
+      if (opt.lr_by_time && opt.max_minutes > 0) {
+        progress = std::min(1.0, std::max(progress, elapsed_s() / (60.0 * opt.max_minutes)));
+      }
       const double lr = std::max(opt.learning_rate * std::pow(opt.lr_decay, progress), 1e-6);
       for (auto& group : optimizer.param_groups()) {
         static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);

@@ -258,7 +258,9 @@ struct TrainArgs {
   double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
   std::uint64_t seed = 123;
   bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
+  bool lr_by_time = false;
   std::string class_weights = "none";
+  std::string init;  // start from these weights (fine-tuning), same configuration
 };
 
 // Opens the per-step CSV for appending from `first_step` on: rows of a previous run at or after
@@ -315,6 +317,8 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
                      : (a.no_elastic ? "affine + crop (no elastic)" : "affine + elastic + crop"))
     << "\n";
   y << "  class_weights: " << a.class_weights << "\n";
+  if (a.lr_by_time) y << "  lr_schedule: by time (decay reached at --max-minutes)\n";
+  if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   if (val) {
     y << "metrics_val:\n";
     y << "  semantic_miou_present: " << val->miou_present << "\n";
@@ -343,6 +347,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.loader_threads = a.loader_threads;
   opt.device = a.device;
   opt.max_minutes = a.max_minutes;
+  opt.lr_by_time = a.lr_by_time;
   opt.checkpoint_every_steps = a.checkpoint_every;
   opt.validate_every_epochs = a.val_every;
   opt.progress = !a.quiet;
@@ -363,7 +368,14 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
     throw InvalidArgument("--class-weights must be none or sqrt-inverse, got '" + a.class_weights +
                           "'");
   }
-  nn::Stage1Model model(config, a.seed);
+  nn::Stage1Model model =
+      a.init.empty() ? nn::Stage1Model(config, a.seed) : nn::Stage1Model::Load(a.init);
+  if (model.config().ToString() != config.ToString()) {
+    throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
+                          model.config().ToString() + "', not the --config '" +
+                          config.ToString() + "'");
+  }
+  if (!a.init.empty()) std::printf("initialised from %s\n", a.init.c_str());
   long long points = 0;
   for (const auto& s : train) points += static_cast<long long>(s.points.size());
   std::printf(
@@ -448,6 +460,12 @@ void SetupTrain(CLI::App& app) {
   app.add_flag("--rgb", a->rgb, "also feed colours");
   app.add_option("--class-weights", a->class_weights,
                  "semantic loss weights: none (reference) | sqrt-inverse (of class frequency)");
+  app.add_option("--init", a->init,
+                 "start from these stage-1 weights (fine-tuning; same --config; a checkpoint "
+                 "in --out still takes precedence)");
+  app.add_flag("--lr-by-time", a->lr_by_time,
+               "with --max-minutes: decay the learning rate over the time budget rather than "
+               "the epochs (hosts of unknown speed)");
   app.add_flag("--fp32", a->fp32, "store the final weights as float32 (default float16)");
   app.add_flag("--quiet", a->quiet, "no progress bar");
   app.callback([a, &app]() { RunTrain(*a, CommandLine(app)); });

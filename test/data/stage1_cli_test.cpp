@@ -101,6 +101,27 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
 
+  // Fine-tuning from the trained weights: the card records the source, the first logged loss
+  // is that of the trained model (below the fresh run's first loss); a model of another
+  // configuration is refused, naming both configurations.
+  std::tie(rc, out) =
+      RunCli("train stage1 --train " + d + "/cache.bin --out " + d + "/tuned --init " + model +
+             "/stage1.pt --config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25' --epochs 1 "
+             "--batch 1 --threads 1 --quiet --seed 3 --max-minutes 5 --lr-by-time");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("initialised from"), std::string::npos) << out;
+  const std::string tuned_card = ReadText(d + "/tuned/model.yaml");
+  EXPECT_NE(tuned_card.find("initialised_from: \"" + model + "/stage1.pt\""), std::string::npos)
+      << tuned_card;
+  EXPECT_NE(tuned_card.find("lr_schedule: by time"), std::string::npos) << tuned_card;
+  std::tie(rc, out) =
+      RunCli("train stage1 --train " + d + "/cache.bin --out " + d + "/tuned2 --init " + model +
+             "/stage1.pt --config 'scale=10 rgb=0 widths=8,16,24 reps=1 classes=25' --epochs 1 "
+             "--quiet");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("widths=8,16 "), std::string::npos) << out;
+  EXPECT_NE(out.find("widths=8,16,24"), std::string::npos) << out;
+
   // A corrupt model file: non-zero exit, the message names the file.
   std::ofstream(d + "/junk.pt") << "definitely not a model";
   std::tie(rc, out) = RunCli("stage1 eval --model " + d + "/junk.pt --scans " + d + "/cache.bin");

@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -11,6 +12,7 @@
 #include <random>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/sparse_ops.h"
 
 namespace dimr::nn {
 namespace {
@@ -116,6 +118,70 @@ TEST(Stage1Model, TrainingLowersTheLossOnAFixedBatch) {
     correct += out.semantic[i] == data[0].semantic[i];
   }
   EXPECT_GT(static_cast<double>(correct) / labelled, 0.9);
+}
+
+// The torch-ops sparse path (the one CUDA builds use) trains exactly like the fused CPU path:
+// same losses step by step, same weights after training.
+TEST(Stage1Model, TorchOpsBackendTrainsLikeTheFusedPath) {
+  std::vector<Stage1Sample> data{TinyRoom(4), TinyRoom(5)};
+  Stage1TrainOptions opt;
+  opt.epochs = 3;
+  opt.batch_size = 2;
+  opt.learning_rate = 1e-2;
+  opt.progress = false;
+  opt.threads = 1;
+  std::vector<std::vector<Stage1StepLog>> logs;
+  std::vector<Stage1Output> outs;
+  for (SparseBackend b : {SparseBackend::kFused, SparseBackend::kTorchOps}) {
+    SetSparseBackend(b);
+    Stage1Model model(TinyConfig(), 11);
+    try {
+      logs.push_back(model.Train(data, opt));
+      outs.push_back(model.Predict(data[0]));
+    } catch (...) {
+      SetSparseBackend(SparseBackend::kAuto);
+      throw;
+    }
+    SetSparseBackend(SparseBackend::kAuto);
+  }
+  ASSERT_EQ(logs[0].size(), 3u);
+  ASSERT_EQ(logs[1].size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(logs[1][i].loss.total, logs[0][i].loss.total, 1e-3 * logs[0][i].loss.total)
+        << "step " << i;
+    EXPECT_NEAR(logs[1][i].loss.heading_cls, logs[0][i].loss.heading_cls, 1e-3) << "step " << i;
+  }
+  ASSERT_EQ(outs[0].offsets.size(), outs[1].offsets.size());
+  double max_diff = 0;
+  for (std::size_t i = 0; i < outs[0].offsets.size(); ++i) {
+    max_diff = std::max<double>(max_diff, (outs[0].offsets[i] - outs[1].offsets[i]).norm());
+  }
+  EXPECT_LT(max_diff, 1e-2);  // metres; Adam amplifies float-order noise a little
+}
+
+// With lr_by_time the schedule follows the time budget: a budget already spent at the first step
+// gives the final learning rate at once (and stops after that step).
+TEST(Stage1Model, LearningRateCanFollowTheTimeBudget) {
+  std::vector<Stage1Sample> data{TinyRoom(6)};
+  Stage1TrainOptions opt;
+  opt.epochs = 4;
+  opt.batch_size = 1;
+  opt.learning_rate = 1e-2;
+  opt.lr_decay = 0.1;
+  opt.augment.enabled = false;
+  opt.progress = false;
+  opt.threads = 1;
+  Stage1Model by_step(TinyConfig(), 2);
+  const auto a = by_step.Train(data, opt);
+  ASSERT_EQ(a.size(), 4u);
+  EXPECT_DOUBLE_EQ(a[0].lr, 1e-2);
+  EXPECT_NEAR(a[3].lr, 1e-2 * std::pow(0.1, 0.75), 1e-9);
+  opt.max_minutes = 1e-9;
+  opt.lr_by_time = true;
+  Stage1Model by_time(TinyConfig(), 2);
+  const auto b = by_time.Train(data, opt);
+  ASSERT_EQ(b.size(), 1u);
+  EXPECT_NEAR(b[0].lr, 1e-3, 1e-12);
 }
 
 TEST(Stage1Model, PredictShapesAndDeterminism) {
