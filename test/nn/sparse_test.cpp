@@ -95,8 +95,9 @@ class BackendGuard {
   SparseBackend old_;
 };
 
-const SparseBackend kBackends[] = {SparseBackend::kFused, SparseBackend::kTorchOps};
-const char* Name(SparseBackend b) { return b == SparseBackend::kFused ? "fused" : "torch-ops"; }
+const SparseBackend kBackends[] = {SparseBackend::kFused, SparseBackend::kTorchOps,
+                                   SparseBackend::kBatched};
+const char* Name(SparseBackend b) { return SparseBackendName(b); }
 
 // ---------------------------------------------------------------------------------------
 TEST(SparseConv, SubmanifoldMatchesDenseConv3d) {
