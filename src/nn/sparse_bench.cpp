@@ -295,7 +295,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
             : std::vector<SparseBackend>{SparseBackend::kFused};
     for (SparseBackend be : backends) {
       SetSparseBackend(be);
-      const std::string bname = SparseBackendName(be);
+      const std::string bname = be == SparseBackend::kFused ? "fused" : "torch-ops";
       const int reps = be == SparseBackend::kFused ? opt.repeats : 1;
       net->eval();
       std::vector<double> fw, cpu;
@@ -371,8 +371,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
     at::Tensor w0 = at::randn({3, 3, 3, c, c}) * (1.0 / std::sqrt(27.0 * c));
     at::Tensor g = at::randn({rep.room_voxels, c});
     const std::vector<SparseBackend> backends =
-        opt.torch_ops ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps,
-                                                   SparseBackend::kBatched}
+        opt.torch_ops ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps}
                       : std::vector<SparseBackend>{SparseBackend::kFused};
     for (SparseBackend be : backends) {
       SetSparseBackend(be);
@@ -397,7 +396,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       }
       SparseBenchRow row;
       row.layer = "subm3 " + std::to_string(c) + "->" + std::to_string(c);
-      row.backend = SparseBackendName(be);
+      row.backend = be == SparseBackend::kFused ? "fused" : "torch-ops";
       row.width = c;
       row.sites = rep.room_voxels;
       row.pairs = pairs;

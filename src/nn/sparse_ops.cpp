@@ -204,38 +204,6 @@ void TorchOpsBackward(const at::Tensor& x, const at::Tensor& w, const at::Tensor
   }
 }
 
-// All offsets at once: rows of `padded` (K x width, sentinel = one past the last row) gather
-// from x with a zero row appended, one bmm with w [K, Cin, Cout], one scatter into n_dst + 1
-// rows (the last one collects the padding and is dropped).
-at::Tensor BatchedForward(const at::Tensor& x, const at::Tensor& w, const at::Tensor& src_pad,
-                          const at::Tensor& dst_pad, int64_t n_dst) {
-  const int64_t kv = w.size(0), cin = w.size(1), cout = w.size(2);
-  const int64_t width = src_pad.size(0) / std::max<int64_t>(kv, 1);
-  const at::Tensor xp = at::cat({x, at::zeros({1, cin}, x.options())});
-  const at::Tensor y = at::bmm(xp.index_select(0, src_pad).view({kv, width, cin}), w);
-  at::Tensor out = at::zeros({n_dst + 1, cout}, x.options());
-  out.index_add_(0, dst_pad, y.view({kv * width, cout}));
-  return out.narrow(0, 0, n_dst).contiguous();
-}
-
-void BatchedBackward(const at::Tensor& x, const at::Tensor& w, const at::Tensor& gout,
-                     const at::Tensor& src_pad, const at::Tensor& dst_pad, at::Tensor* gx,
-                     at::Tensor* gw) {
-  const int64_t kv = w.size(0), cin = w.size(1), cout = w.size(2);
-  const int64_t width = src_pad.size(0) / std::max<int64_t>(kv, 1);
-  const at::Tensor gp = at::cat({gout, at::zeros({1, cout}, gout.options())});
-  const at::Tensor g = gp.index_select(0, dst_pad).view({kv, width, cout});
-  if (gx) {
-    at::Tensor acc = at::zeros({x.size(0) + 1, cin}, x.options());
-    acc.index_add_(0, src_pad, at::bmm(g, w.transpose(1, 2)).view({kv * width, cin}));
-    gx->copy_(acc.narrow(0, 0, x.size(0)));
-  }
-  if (gw) {
-    const at::Tensor xp = at::cat({x, at::zeros({1, cin}, x.options())});
-    gw->copy_(at::bmm(xp.index_select(0, src_pad).view({kv, width, cin}).transpose(1, 2), g));
-  }
-}
-
 bool UseFused(SparseBackend requested, const at::Device& device) {
   SparseBackend b = requested == SparseBackend::kAuto ? ResolveSparseBackend(device) : requested;
   if (b == SparseBackend::kFused && !device.is_cpu()) {
@@ -247,19 +215,15 @@ bool UseFused(SparseBackend requested, const at::Device& device) {
 
 class ConvFunction : public torch::autograd::Function<ConvFunction> {
  public:
-  // kind: 0 = torch ops per offset, 1 = fused CPU, 2 = batched (src/dst are padded grids).
   static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& w,
                             const at::Tensor& src_idx, const at::Tensor& dst_idx,
-                            std::vector<int64_t> meta, int64_t kind) {
+                            std::vector<int64_t> meta, bool fused) {
     // meta = [identity, n_src, n_dst, offsets...]
     ConvPlan p = PlanFromMeta(src_idx, dst_idx, meta);
     at::Tensor xc = x.detach().contiguous();
     at::Tensor wc = w.detach().contiguous();
     at::Tensor out;
-    const bool fused = kind == 1;
-    if (kind == 2) {
-      out = BatchedForward(xc, wc, src_idx, dst_idx, p.n_dst);
-    } else if (fused) {
+    if (fused) {
       out = at::zeros({p.n_dst, wc.size(2)}, xc.options());
       AT_DISPATCH_FLOATING_TYPES(xc.scalar_type(), "sparse_conv_forward",
                                  [&] { FusedForwardImpl<scalar_t>(xc, wc, p, out); });
@@ -268,7 +232,7 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
     }
     ctx->save_for_backward({x, w, src_idx, dst_idx});
     ctx->saved_data["meta"] = meta;
-    ctx->saved_data["kind"] = kind;
+    ctx->saved_data["fused"] = fused;
     return out;
   }
 
@@ -277,8 +241,7 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
     const at::Tensor x = saved[0].detach().contiguous();
     const at::Tensor w = saved[1].detach().contiguous();
     std::vector<int64_t> meta = ctx->saved_data["meta"].toIntVector();
-    const int64_t kind = ctx->saved_data["kind"].toInt();
-    const bool fused = kind == 1;
+    const bool fused = ctx->saved_data["fused"].toBool();
     ConvPlan p = PlanFromMeta(saved[2], saved[3], meta);
     const at::Tensor g = grads[0].detach().contiguous();
     const bool need_x = ctx->needs_input_grad(0), need_w = ctx->needs_input_grad(1);
@@ -286,10 +249,7 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
     if (need_x) gx = at::zeros_like(x);
     if (need_w) gw = at::zeros_like(w);
     if (need_x || need_w) {
-      if (kind == 2) {
-        BatchedBackward(x, w, g, saved[2], saved[3], need_x ? &gx : nullptr,
-                        need_w ? &gw : nullptr);
-      } else if (fused) {
+      if (fused) {
         AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "sparse_conv_backward", [&] {
           FusedBackwardImpl<scalar_t>(x, w, g, p, need_x ? &gx : nullptr, need_w ? &gw : nullptr);
         });
@@ -546,30 +506,7 @@ SparseBackend GetSparseBackend() { return static_cast<SparseBackend>(g_backend.l
 SparseBackend ResolveSparseBackend(const at::Device& device) {
   const SparseBackend b = GetSparseBackend();
   if (b != SparseBackend::kAuto) return b;
-  return device.is_cpu() ? SparseBackend::kFused : SparseBackend::kBatched;
-}
-
-const char* SparseBackendName(SparseBackend backend) {
-  switch (backend) {
-    case SparseBackend::kAuto:
-      return "auto";
-    case SparseBackend::kFused:
-      return "fused";
-    case SparseBackend::kTorchOps:
-      return "torch-ops";
-    case SparseBackend::kBatched:
-      return "batched";
-  }
-  return "?";
-}
-
-SparseBackend ParseSparseBackend(const std::string& name) {
-  for (SparseBackend b : {SparseBackend::kAuto, SparseBackend::kFused, SparseBackend::kTorchOps,
-                          SparseBackend::kBatched}) {
-    if (name == SparseBackendName(b)) return b;
-  }
-  throw InvalidArgument("unknown sparse backend '" + name +
-                        "' (auto, fused, torch-ops or batched)");
+  return device.is_cpu() ? SparseBackend::kFused : SparseBackend::kTorchOps;
 }
 
 at::Tensor RulebookConv(const at::Tensor& features, const at::Tensor& weight, const Rulebook& rb,
@@ -588,17 +525,10 @@ at::Tensor RulebookConv(const at::Tensor& features, const at::Tensor& weight, co
     throw InvalidArgument("sparse conv: weight and features differ in dtype or device");
   }
   const bool fused = UseFused(backend, features.device());
-  const SparseBackend resolved =
-      backend == SparseBackend::kAuto ? ResolveSparseBackend(features.device()) : backend;
   ConvPlan p = MakePlan(rb, transpose, features.device());
   std::vector<int64_t> meta{p.identity, p.n_src, p.n_dst};
   meta.insert(meta.end(), p.offsets.begin(), p.offsets.end());
-  if (resolved == SparseBackend::kBatched) {
-    const Rulebook::Padded pad = rb.PaddedOnDevice(features.device());
-    return ConvFunction::apply(features, weight, transpose ? pad.out : pad.in,
-                               transpose ? pad.in : pad.out, meta, int64_t{2});
-  }
-  return ConvFunction::apply(features, weight, p.src_idx, p.dst_idx, meta, int64_t{fused ? 1 : 0});
+  return ConvFunction::apply(features, weight, p.src_idx, p.dst_idx, meta, fused);
 }
 
 SparseTensor SubMConv3d(const SparseTensor& x, const at::Tensor& weight) {

@@ -3,7 +3,6 @@
 
 #include <ATen/Parallel.h>
 
-#include <algorithm>
 #include <sstream>
 #include <string>
 
@@ -102,35 +101,6 @@ std::pair<at::Tensor, at::Tensor> Rulebook::OnDevice(const at::Device& device) c
   auto pair = std::make_pair(in_idx.to(device), out_idx.to(device));
   device_cache_[key] = pair;
   return pair;
-}
-
-int64_t Rulebook::max_pairs_per_offset() const {
-  int64_t m = 0;
-  for (size_t k = 0; k + 1 < offsets.size(); ++k) m = std::max(m, offsets[k + 1] - offsets[k]);
-  return m;
-}
-
-Rulebook::Padded Rulebook::PaddedOnDevice(const at::Device& device) const {
-  std::lock_guard<std::mutex> lock(mutex_);
-  const std::string key = device.str();
-  auto it = padded_cache_.find(key);
-  if (it != padded_cache_.end()) return it->second;
-  Padded p;
-  p.width = max_pairs_per_offset();
-  at::Tensor in = at::full({kernel_volume * p.width}, num_in, at::kLong);
-  at::Tensor out = at::full({kernel_volume * p.width}, num_out, at::kLong);
-  const int64_t* si = in_idx.data_ptr<int64_t>();
-  const int64_t* so = out_idx.data_ptr<int64_t>();
-  int64_t* di = in.data_ptr<int64_t>();
-  int64_t* dout = out.data_ptr<int64_t>();
-  for (int64_t k = 0; k < kernel_volume; ++k) {
-    std::copy(si + offsets[k], si + offsets[k + 1], di + k * p.width);
-    std::copy(so + offsets[k], so + offsets[k + 1], dout + k * p.width);
-  }
-  p.in = device.is_cpu() ? in : in.to(device);
-  p.out = device.is_cpu() ? out : out.to(device);
-  padded_cache_[key] = p;
-  return p;
 }
 
 SparseContext::SparseContext(at::Tensor coords, std::array<int64_t, 3> spatial_shape,

@@ -451,11 +451,6 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
     throw InvalidArgument("stage1 train: 'lr_decay' must be in (0, 1]");
   }
   opt.augment.Validate();
-  struct BackendRestore {
-    SparseBackend old = GetSparseBackend();
-    ~BackendRestore() { SetSparseBackend(old); }
-  } backend_restore;
-  SetSparseBackend(ParseSparseBackend(opt.sparse_backend));
   if (opt.threads > 0) torch::set_num_threads(opt.threads);
   if (opt.device == "cuda") {
     if (!torch::cuda::is_available()) {

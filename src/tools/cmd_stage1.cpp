@@ -261,7 +261,6 @@ struct TrainArgs {
   bool lr_by_time = false;
   std::string class_weights = "none";
   std::string init;  // start from these weights (fine-tuning), same configuration
-  std::string sparse_backend = "auto";
 };
 
 // Opens the per-step CSV for appending from `first_step` on: rows of a previous run at or after
@@ -349,7 +348,6 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.device = a.device;
   opt.max_minutes = a.max_minutes;
   opt.lr_by_time = a.lr_by_time;
-  opt.sparse_backend = a.sparse_backend;
   opt.checkpoint_every_steps = a.checkpoint_every;
   opt.validate_every_epochs = a.val_every;
   opt.progress = !a.quiet;
@@ -374,8 +372,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
       a.init.empty() ? nn::Stage1Model(config, a.seed) : nn::Stage1Model::Load(a.init);
   if (model.config().ToString() != config.ToString()) {
     throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
-                          model.config().ToString() + "', not the --config '" + config.ToString() +
-                          "'");
+                          model.config().ToString() + "', not the --config '" +
+                          config.ToString() + "'");
   }
   if (!a.init.empty()) std::printf("initialised from %s\n", a.init.c_str());
   long long points = 0;
@@ -465,10 +463,6 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--init", a->init,
                  "start from these stage-1 weights (fine-tuning; same --config; a checkpoint "
                  "in --out still takes precedence)");
-  app.add_option("--sparse-backend", a->sparse_backend,
-                 "sparse-conv kernels: auto (fused on CPU, batched on CUDA), fused, torch-ops, "
-                 "batched")
-      ->check(CLI::IsMember({"auto", "fused", "torch-ops", "batched"}));
   app.add_flag("--lr-by-time", a->lr_by_time,
                "with --max-minutes: decay the learning rate over the time budget rather than "
                "the epochs (hosts of unknown speed)");

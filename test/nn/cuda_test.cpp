@@ -38,7 +38,7 @@ double RelErr(const at::Tensor& a, const at::Tensor& b) {
   return ((a - b).abs().max() / (b.abs().max() + 1e-12)).item<double>();
 }
 
-TEST(Cuda, SparseUNetBatchedOnCudaMatchesCpuFused) {
+TEST(Cuda, SparseUNetTorchOpsOnCudaMatchesCpuFused) {
   if (!HaveCuda()) GTEST_SKIP() << "no CUDA device";
   at::manual_seed(3);
   SparseUNetConfig config;
@@ -55,7 +55,7 @@ TEST(Cuda, SparseUNetBatchedOnCudaMatchesCpuFused) {
   for (const auto& p : net->parameters()) g_cpu.push_back(p.grad().clone());
   net->zero_grad();
   net->to(at::kCUDA);
-  ASSERT_EQ(ResolveSparseBackend(at::Device(at::kCUDA)), SparseBackend::kBatched);
+  ASSERT_EQ(ResolveSparseBackend(at::Device(at::kCUDA)), SparseBackend::kTorchOps);
   SparseTensor y_gpu = net->forward(SparseTensor(coords, x.cuda(), {40, 40, 40}, 2));
   EXPECT_TRUE(y_gpu.features().is_cuda());
   (y_gpu.features() * r.cuda()).sum().backward();

@@ -2,30 +2,20 @@
 // torch::autograd::Function subclasses). Two kernels implement every rulebook op:
 //  - kFused: CPU gather-GEMM-scatter per kernel offset in cache-sized chunks, parallel over
 //    chunks with at::parallel_for, thread-local buffers, GEMM by at::mm_out (BLAS);
-//  - kTorchOps: plain index_select / mm / index_add_ per kernel offset (any device);
-//  - kBatched: the same torch ops over all offsets at once - one gather, one bmm over the
-//    offsets (each padded to the largest offset's pair count), one scatter - so a conv is a
-//    handful of kernel launches instead of ~3 per offset: the fast path on CUDA, where the
-//    per-offset path is bound by launch/dispatch overhead (measured: docs/sparse.md).
-// kAuto picks kFused for CPU tensors and kBatched otherwise; SetSparseBackend overrides it.
+//  - kTorchOps: plain index_select / mm / index_add_ (runs on any device, e.g. CUDA).
+// kAuto picks kFused for CPU tensors and kTorchOps otherwise; SetSparseBackend overrides it.
 #pragma once
 
 #include <ATen/ATen.h>
 
 #include <array>
-#include <string>
 #include <vector>
 
 #include "dimr/nn/sparse_tensor.h"
 
 namespace dimr::nn {
 
-enum class SparseBackend { kAuto, kFused, kTorchOps, kBatched };
-
-// "fused", "torch-ops", "batched" ("auto" for kAuto); ParseSparseBackend throws
-// dimr::InvalidArgument naming the bad value.
-const char* SparseBackendName(SparseBackend backend);
-SparseBackend ParseSparseBackend(const std::string& name);
+enum class SparseBackend { kAuto, kFused, kTorchOps };
 
 // Process-wide override (for tests and benchmarks). kAuto = choose by device.
 void SetSparseBackend(SparseBackend backend);

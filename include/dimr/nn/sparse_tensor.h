@@ -51,22 +51,10 @@ struct Rulebook {
   // Index tensors on another device (e.g. CUDA), built on first use.
   std::pair<at::Tensor, at::Tensor> OnDevice(const at::Device& device) const;
   int64_t num_pairs() const { return offsets.empty() ? 0 : offsets.back(); }
-  int64_t max_pairs_per_offset() const;
-
-  // The pairs as a [kernel_volume, max_pairs_per_offset] grid (flattened, int64): offset k's
-  // pairs in row k, the rest of the row padded with the sentinel num_in (in) / num_out (out),
-  // i.e. one row past the end. For batched kernels (one gather / bmm / scatter for all
-  // offsets). Built on first use per device and cached.
-  struct Padded {
-    at::Tensor in, out;
-    int64_t width = 0;  // max pairs per offset
-  };
-  Padded PaddedOnDevice(const at::Device& device) const;
 
  private:
   mutable std::mutex mutex_;
   mutable std::map<std::string, std::pair<at::Tensor, at::Tensor>> device_cache_;
-  mutable std::map<std::string, Padded> padded_cache_;
 };
 
 // All stride levels of one sparse forward pass.

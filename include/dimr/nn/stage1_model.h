@@ -43,15 +43,12 @@ struct Stage1TrainOptions {
   std::string device = "cpu";   // "cpu" or "cuda"
   std::string checkpoint_path;  // full training state (model, optimiser, position)
   int checkpoint_every_steps = 200;
-  bool resume = true;      // continue from checkpoint_path when it exists
-  double max_minutes = 0;  // stop (after checkpointing) when exceeded; 0 = no limit
+  bool resume = true;             // continue from checkpoint_path when it exists
+  double max_minutes = 0;         // stop (after checkpointing) when exceeded; 0 = no limit
   // With max_minutes: the schedule's progress is max(step fraction, elapsed fraction of
   // max_minutes), so the learning rate reaches its final value when the time budget ends even
   // where the speed of a host (a GPU) is not known in advance. Off: step fraction only.
   bool lr_by_time = false;
-  // Sparse-conv kernels while training: "auto" (fused on CPU, batched on CUDA), "fused",
-  // "torch-ops" or "batched" (see sparse_ops.h); restored when Train returns.
-  std::string sparse_backend = "auto";
   int validate_every_epochs = 1;  // calls the epoch callback every k epochs and at the end
   bool progress = true;           // progress bar with the loss terms on stderr
   // Per-class weights of the semantic cross-entropy (num_classes entries; empty = unweighted,
