@@ -11,9 +11,11 @@
 //  - The learning rate decays continuously per step: lr0 * decay^(step / total_steps).
 #include "dimr/nn/stage1_model.h"
 
+#include <torch/cuda.h>
 #include <torch/torch.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -530,6 +532,7 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
   };
   Stage1LossTerms running;
   int running_n = 0;
+  std::array<double, 3> running_ms{0, 0, 0};  // data, forward (+ loss), backward (+ optimiser)
   bool out_of_time = false;
   while (step < total_steps && !out_of_time) {
     const int epoch = static_cast<int>(step / per_epoch);  // 0-based
@@ -537,7 +540,9 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
     loader.StartEpoch(epoch, first);
     net->train();
     Stage1Batch batch;
+    auto t_wait = std::chrono::steady_clock::now();
     while (step < total_steps && loader.Next(&batch)) {
+      const auto t_data = std::chrono::steady_clock::now();
       double progress = static_cast<double>(step) / static_cast<double>(total_steps);
       if (opt.lr_by_time && opt.max_minutes > 0) {
         progress = std::min(1.0, std::max(progress, elapsed_s() / (60.0 * opt.max_minutes)));
@@ -548,16 +553,30 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
       }
       const BatchTensors t = ToTensors(batch, impl_->device);
       optimizer.zero_grad();
-      const HeadOutput h = impl_->Forward(t, nullptr);
+      Stage1Timing timing;
+      const HeadOutput h = impl_->Forward(t, &timing);
+      const auto t_fwd = std::chrono::steady_clock::now();
       LossOut l = ComputeLoss(h, t, class_weight);
       if (!std::isfinite(l.terms.total)) {
         throw Error("stage1 train: the loss became non-finite at step " + std::to_string(step + 1) +
                     " (batch " + batch.names.front() + "...); lower the learning rate");
       }
+      const auto t_loss = std::chrono::steady_clock::now();
+      const bool cuda = impl_->device.is_cuda();
       l.total.backward();
+      if (cuda) torch::cuda::synchronize();
+      const auto t_bwd = std::chrono::steady_clock::now();
       optimizer.step();
+      if (cuda) torch::cuda::synchronize();
+      const auto t_opt = std::chrono::steady_clock::now();
       ++step;
       Stage1StepLog s;
+      s.data_ms = Ms(t_wait, t_data);
+      s.voxelize_ms = timing.voxelize_ms;
+      s.unet_ms = timing.unet_ms;
+      s.loss_ms = timing.heads_ms + Ms(t_fwd, t_loss);
+      s.backward_ms = Ms(t_loss, t_bwd);
+      s.optimizer_ms = Ms(t_bwd, t_opt);
       s.epoch = epoch + 1;
       s.step = static_cast<int>(step);
       s.lr = lr;
@@ -572,19 +591,24 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
       running.heading_cls += l.terms.heading_cls;
       running.heading_res += l.terms.heading_res;
       ++running_n;
+      running_ms[0] += s.data_ms;
+      running_ms[1] += s.voxelize_ms + s.unet_ms + s.loss_ms;
+      running_ms[2] += s.backward_ms + s.optimizer_ms;
       if (opt.progress) {
         const double k = 1.0 / running_n;
         const int in_epoch = static_cast<int>((step - 1) % per_epoch) + 1;
         std::fprintf(stderr,
                      "\r[epoch %d/%d %4d/%d] loss %.3f sem %.3f off %.3f dir %.3f hcls %.3f "
-                     "hres %.3f lr %.1e %.2f s/it   ",
+                     "hres %.3f lr %.1e %.2f s/it (data %.0f fwd %.0f bwd %.0f ms)   ",
                      epoch + 1, opt.epochs, in_epoch, per_epoch, running.total * k,
                      running.semantic * k, running.offset_norm * k, running.offset_dir * k,
                      running.heading_cls * k, running.heading_res * k, lr,
-                     s.seconds / std::max<double>(1, static_cast<double>(logs.size())));
+                     s.seconds / std::max<double>(1, static_cast<double>(logs.size())),
+                     running_ms[0] * k, running_ms[1] * k, running_ms[2] * k);
         std::fflush(stderr);
       }
       if (opt.checkpoint_every_steps > 0 && step % opt.checkpoint_every_steps == 0) checkpoint();
+      t_wait = std::chrono::steady_clock::now();
       if (opt.max_minutes > 0 && elapsed_s() / 60.0 >= opt.max_minutes) {
         out_of_time = true;
         break;
@@ -594,6 +618,7 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
     if (epoch_done) {
       running = Stage1LossTerms();
       running_n = 0;
+      running_ms = {0, 0, 0};
       const int finished = static_cast<int>((step + per_epoch - 1) / per_epoch);
       const bool last = step >= total_steps;
       checkpoint();

@@ -267,7 +267,8 @@ struct TrainArgs {
 // that step (training resumed from an earlier checkpoint) are dropped, so every step appears once.
 void OpenStepLog(const std::string& path, long long first_step, std::ofstream* csv) {
   const char* header =
-      "step,epoch,lr,loss,semantic,offset_norm,offset_dir,heading_cls,heading_res,seconds";
+      "step,epoch,lr,loss,semantic,offset_norm,offset_dir,heading_cls,heading_res,seconds,"
+      "data_ms,voxelize_ms,unet_ms,loss_ms,backward_ms,optimizer_ms";
   std::vector<std::string> keep;
   if (std::ifstream in(path); in) {
     std::string line;
@@ -372,8 +373,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
       a.init.empty() ? nn::Stage1Model(config, a.seed) : nn::Stage1Model::Load(a.init);
   if (model.config().ToString() != config.ToString()) {
     throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
-                          model.config().ToString() + "', not the --config '" +
-                          config.ToString() + "'");
+                          model.config().ToString() + "', not the --config '" + config.ToString() +
+                          "'");
   }
   if (!a.init.empty()) std::printf("initialised from %s\n", a.init.c_str());
   long long points = 0;
@@ -414,7 +415,9 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         last_step = s.step;
         csv << s.step << "," << s.epoch << "," << s.lr << "," << s.loss.total << ","
             << s.loss.semantic << "," << s.loss.offset_norm << "," << s.loss.offset_dir << ","
-            << s.loss.heading_cls << "," << s.loss.heading_res << "," << s.seconds << "\n";
+            << s.loss.heading_cls << "," << s.loss.heading_res << "," << s.seconds << ","
+            << s.data_ms << "," << s.voxelize_ms << "," << s.unet_ms << "," << s.loss_ms << ","
+            << s.backward_ms << "," << s.optimizer_ms << "\n";
         if (s.step % 20 == 0) csv.flush();
       },
       on_epoch);

@@ -102,6 +102,18 @@ TEST(Stage1Model, TrainingLowersTheLossOnAFixedBatch) {
   const Stage1LossTerms before = model.EvaluateLoss(batch);
   const auto logs = model.Train(data, opt);
   ASSERT_EQ(logs.size(), 150u);
+  // Phase timings: every step has a forward and a backward pass; they add up to at most the
+  // step's wall time.
+  for (std::size_t i = 1; i < logs.size(); ++i) {
+    const auto& l = logs[i];
+    EXPECT_GT(l.unet_ms, 0);
+    EXPECT_GT(l.backward_ms, 0);
+    EXPECT_GE(l.data_ms, 0);
+    EXPECT_GE(l.optimizer_ms, 0);
+    const double sum =
+        l.data_ms + l.voxelize_ms + l.unet_ms + l.loss_ms + l.backward_ms + l.optimizer_ms;
+    EXPECT_LE(sum, 1000 * (l.seconds - logs[i - 1].seconds) + 1.0) << "step " << i;
+  }
   const Stage1LossTerms after = model.EvaluateLoss(batch);
   EXPECT_GT(before.total, 0);
   EXPECT_LT(logs.back().loss.total, 0.5 * logs.front().loss.total)

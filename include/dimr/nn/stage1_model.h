@@ -43,8 +43,8 @@ struct Stage1TrainOptions {
   std::string device = "cpu";   // "cpu" or "cuda"
   std::string checkpoint_path;  // full training state (model, optimiser, position)
   int checkpoint_every_steps = 200;
-  bool resume = true;             // continue from checkpoint_path when it exists
-  double max_minutes = 0;         // stop (after checkpointing) when exceeded; 0 = no limit
+  bool resume = true;      // continue from checkpoint_path when it exists
+  double max_minutes = 0;  // stop (after checkpointing) when exceeded; 0 = no limit
   // With max_minutes: the schedule's progress is max(step fraction, elapsed fraction of
   // max_minutes), so the learning rate reaches its final value when the time budget ends even
   // where the speed of a host (a GPU) is not known in advance. Off: step fraction only.
@@ -66,6 +66,11 @@ struct Stage1StepLog {
   double lr = 0;
   Stage1LossTerms loss;
   double seconds = 0;  // wall time since the start (this process)
+  // Where the step's time went (ms): waiting for the loader, voxelisation, U-Net forward
+  // (rulebooks included), heads + loss, backward, optimiser. On CUDA the device is synchronised
+  // after backward and after the optimiser step so that the phases are not blurred by queued
+  // kernels (the loss already synchronises).
+  double data_ms = 0, voxelize_ms = 0, unet_ms = 0, loss_ms = 0, backward_ms = 0, optimizer_ms = 0;
 };
 
 // Per-point results of one scene (in the input point order).
