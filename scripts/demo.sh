@@ -21,6 +21,6 @@ mkdir -p "$OUT"
 "$DIMR" bsp eval-cad --model models/bsp/bsp.pt --per-class 5 --seed 3 | tee "$OUT/bsp_eval.md"
 "$DIMR" bsp render --model models/bsp/bsp.pt --per-class 2 --out "$OUT/bsp_reconstructions.png" \
   --interp-out "$OUT/bsp_interpolation.png"
-"$DIMR" stage1 eval --model models/stage1/stage1.pt --scans "$OUT/synth" --passes s0.05,s0.1,s0.15 --render 2 \
+"$DIMR" stage1 eval --model models/stage1/stage1.pt --scans "$OUT/synth" --passes s0.12,s0.2,s0.3 --render 2 \
   --render-dir "$OUT/stage1" | tee "$OUT/stage1_eval.md"
 echo "demo: outputs in $OUT (synth/scans, synth/renders, synth/bags, bsp_*.png, bsp_eval.md, stage1/*.png, stage1_eval.md)"
