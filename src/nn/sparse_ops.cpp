@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cstring>
 #include <limits>
 #include <sstream>
 #include <string>
@@ -60,22 +61,55 @@ int64_t ChunkRows(int64_t cin, int64_t cout) {
   return std::clamp<int64_t>(131072 / std::max<int64_t>(1, cin + cout), 256, 8192);
 }
 
+// Row gather / scatter-add of the fused kernels. The rows are scattered over a feature matrix much
+// larger than the caches, so the rows a few pairs ahead are prefetched; copies go through memcpy
+// (glibc picks an AVX2/AVX-512 copy at run time) and the adds are compiled for AVX-512, AVX2 and
+// the baseline, chosen at load time (target_clones; this file is built with -O3 so they vectorise).
+constexpr int64_t kPrefetchAhead = 6;
+
 template <typename T>
-inline void GatherRows(T* dst, const T* src, const int64_t* idx, int64_t rows, int64_t c) {
+inline void PrefetchRow(const T* row, int64_t c) {
+  const char* p = reinterpret_cast<const char*>(row);
+  for (int64_t b = 0; b < c * static_cast<int64_t>(sizeof(T)); b += 64) __builtin_prefetch(p + b);
+}
+
+template <typename T>
+inline void GatherRows(T* __restrict dst, const T* __restrict src, const int64_t* idx, int64_t rows,
+                       int64_t c) {
   for (int64_t r = 0; r < rows; ++r) {
-    const T* s = src + idx[r] * c;
-    T* d = dst + r * c;
-    for (int64_t j = 0; j < c; ++j) d[j] = s[j];
+    if (r + kPrefetchAhead < rows) PrefetchRow(src + idx[r + kPrefetchAhead] * c, c);
+    std::memcpy(dst + r * c, src + idx[r] * c, static_cast<size_t>(c) * sizeof(T));
   }
 }
 
 template <typename T>
-inline void ScatterAddRows(T* dst, const T* src, const int64_t* idx, int64_t rows, int64_t c) {
+inline __attribute__((always_inline)) void ScatterAddBody(T* __restrict dst,
+                                                          const T* __restrict src,
+                                                          const int64_t* idx, int64_t rows,
+                                                          int64_t c) {
   for (int64_t r = 0; r < rows; ++r) {
-    T* d = dst + idx[r] * c;
-    const T* s = src + r * c;
+    if (r + kPrefetchAhead < rows) PrefetchRow(dst + idx[r + kPrefetchAhead] * c, c);
+    T* __restrict d = dst + idx[r] * c;
+    const T* __restrict s = src + r * c;
     for (int64_t j = 0; j < c; ++j) d[j] += s[j];
   }
+}
+
+__attribute__((target_clones("avx512f", "avx2", "default"))) void ScatterAddRowsF(
+    float* dst, const float* src, const int64_t* idx, int64_t rows, int64_t c) {
+  ScatterAddBody(dst, src, idx, rows, c);
+}
+__attribute__((target_clones("avx512f", "avx2", "default"))) void ScatterAddRowsD(
+    double* dst, const double* src, const int64_t* idx, int64_t rows, int64_t c) {
+  ScatterAddBody(dst, src, idx, rows, c);
+}
+inline void ScatterAddRows(float* dst, const float* src, const int64_t* idx, int64_t rows,
+                           int64_t c) {
+  ScatterAddRowsF(dst, src, idx, rows, c);
+}
+inline void ScatterAddRows(double* dst, const double* src, const int64_t* idx, int64_t rows,
+                           int64_t c) {
+  ScatterAddRowsD(dst, src, idx, rows, c);
 }
 
 // ---------------------------------------------------------------------------------------
