@@ -270,8 +270,10 @@ double Ms(std::chrono::steady_clock::time_point a, std::chrono::steady_clock::ti
 // ---------------------------------------------------------------------------------------
 
 std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples, int num_classes,
-                                        double min_w, double max_w) {
+                                        double min_w, double max_w, double power) {
   if (num_classes < 1) throw InvalidArgument("SemanticClassWeights: num_classes must be >= 1");
+  if (!(power > 0 && power <= 2))
+    throw InvalidArgument("SemanticClassWeights: need 0 < power <= 2");
   if (!(min_w > 0 && min_w <= max_w)) {
     throw InvalidArgument("SemanticClassWeights: need 0 < min_w <= max_w");
   }
@@ -296,7 +298,8 @@ std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples
   const double median = m % 2 ? present[m / 2] : 0.5 * (present[m / 2 - 1] + present[m / 2]);
   for (int c = 0; c < num_classes; ++c) {
     if (count[c] > 0) {
-      w[c] = static_cast<float>(std::clamp(std::sqrt(median / (count[c] / total)), min_w, max_w));
+      w[c] = static_cast<float>(
+          std::clamp(std::pow(median / (count[c] / total), power), min_w, max_w));
     }
   }
   return w;

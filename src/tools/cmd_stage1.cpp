@@ -360,14 +360,17 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   const auto train = LoadScenes(a.train, a.limit_train, a.data_threads);
   std::vector<nn::Stage1Sample> val;
   if (!a.val.empty()) val = LoadScenes(a.val, a.val_scenes, a.data_threads);
-  if (a.class_weights == "sqrt-inverse") {
-    opt.class_weights = nn::SemanticClassWeights(train, config.num_classes);
-    std::printf("class weights (sqrt inverse frequency):");
+  if (a.class_weights == "sqrt-inverse" || a.class_weights == "inverse") {
+    const bool sq = a.class_weights == "sqrt-inverse";
+    opt.class_weights = sq ? nn::SemanticClassWeights(train, config.num_classes)
+                           : nn::SemanticClassWeights(train, config.num_classes, 0.1, 10.0, 1.0);
+    std::printf("class weights (%s frequency):",
+                sq ? "sqrt inverse" : "inverse, clamped to [0.1, 10]");
     for (float w : opt.class_weights) std::printf(" %.2f", w);
     std::printf("\n");
   } else if (a.class_weights != "none") {
-    throw InvalidArgument("--class-weights must be none or sqrt-inverse, got '" + a.class_weights +
-                          "'");
+    throw InvalidArgument("--class-weights must be none, sqrt-inverse or inverse, got '" +
+                          a.class_weights + "'");
   }
   nn::Stage1Model model =
       a.init.empty() ? nn::Stage1Model(config, a.seed) : nn::Stage1Model::Load(a.init);
@@ -461,8 +464,9 @@ void SetupTrain(CLI::App& app) {
   app.add_flag("--no-augment", a->no_augment, "no augmentation");
   app.add_flag("--no-elastic", a->no_elastic, "no elastic distortion");
   app.add_flag("--rgb", a->rgb, "also feed colours");
-  app.add_option("--class-weights", a->class_weights,
-                 "semantic loss weights: none (reference) | sqrt-inverse (of class frequency)");
+  app.add_option(
+      "--class-weights", a->class_weights,
+      "semantic loss weights: none (reference) | sqrt-inverse | inverse (of class frequency)");
   app.add_option("--init", a->init,
                  "start from these stage-1 weights (fine-tuning; same --config; a checkpoint "
                  "in --out still takes precedence)");

@@ -346,6 +346,12 @@ TEST(Stage1Model, SemanticClassWeightsFromFrequencies) {
   EXPECT_NEAR(c[0], 0.6, 1e-6);
   EXPECT_NEAR(c[6], 1.5, 1e-6);
   EXPECT_THROW(SemanticClassWeights({s}, kStage1Classes, 2.0, 1.0), InvalidArgument);
+  // Plain inverse frequency (power 1): 16/64, 1, 16/4.
+  const std::vector<float> inv = SemanticClassWeights({s}, kStage1Classes, 0.1, 10.0, 1.0);
+  EXPECT_NEAR(inv[0], 0.25, 1e-6);
+  EXPECT_NEAR(inv[4], 1.0, 1e-6);
+  EXPECT_NEAR(inv[6], 4.0, 1e-6);
+  EXPECT_THROW(SemanticClassWeights({s}, kStage1Classes, 0.1, 10.0, 0.0), InvalidArgument);
   // A wrong-sized weight vector is rejected by the trainer.
   Stage1Model model(TinyConfig());
   Stage1TrainOptions opt;

@@ -88,12 +88,13 @@ struct Stage1Timing {
   double voxelize_ms = 0, unet_ms = 0, heads_ms = 0;
 };
 
-// Class weights w_c = clamp(sqrt(median_f / f_c), min_w, max_w) from the labelled points of
-// `samples` (f_c = share of class c among the labelled points, median over the classes present);
-// classes without points get 1. Counters the wall/floor majority in short CPU schedules.
+// Class weights w_c = clamp((median_f / f_c)^power, min_w, max_w) (power 0.5: sqrt) from the
+// labelled points of `samples` (f_c = share of class c among the labelled points, median over the
+// classes present); classes without points get 1. Counters the wall/floor majority in short CPU
+// schedules.
 std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples,
                                         int num_classes = kStage1Classes, double min_w = 0.25,
-                                        double max_w = 4.0);
+                                        double max_w = 4.0, double power = 0.5);
 
 // Intra-op threads of the network (at::set_num_threads), for torch-free callers.
 void SetIntraOpThreads(int threads);
