@@ -31,10 +31,11 @@ void CheckInputs(const Eigen::MatrixXf& planes, const std::vector<std::vector<in
 // Summed positive excess of point x over the planes of a convex, with early exit once the
 // threshold is reached.
 inline bool InsideConvex(const Eigen::MatrixXf& planes, const std::vector<int>& ids, float x,
-                         float y, float z, float threshold) {
+                         float y, float z, float threshold, float dilation) {
   float sum = 0.f;
   for (int p : ids) {
-    const float v = planes(p, 0) * x + planes(p, 1) * y + planes(p, 2) * z + planes(p, 3);
+    const float v =
+        planes(p, 0) * x + planes(p, 1) * y + planes(p, 2) * z + planes(p, 3) - dilation;
     if (v > 0.f) {
       sum += v;
       if (sum >= threshold) return false;
@@ -47,13 +48,18 @@ inline bool InsideConvex(const Eigen::MatrixXf& planes, const std::vector<int>& 
 
 std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
-                                       const Eigen::MatrixX3f& points, float inside_threshold) {
+                                       const Eigen::MatrixX3f& points, float inside_threshold,
+                                       float dilation) {
   CheckInputs(planes, convex_planes);
+  if (!(dilation >= 0.0f) || !std::isfinite(dilation)) {
+    throw InvalidArgument("BSP dilation must be finite and >= 0");
+  }
   std::vector<std::uint8_t> out(static_cast<std::size_t>(points.rows()), 0);
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     for (const auto& ids : convex_planes) {
       if (ids.empty()) continue;
-      if (InsideConvex(planes, ids, points(i, 0), points(i, 1), points(i, 2), inside_threshold)) {
+      if (InsideConvex(planes, ids, points(i, 0), points(i, 1), points(i, 2), inside_threshold,
+                       dilation)) {
         out[static_cast<std::size_t>(i)] = 1;
         break;
       }
@@ -69,6 +75,10 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
   if (options.grid < 2 || options.grid > 256) {
     throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
   }
+  if (!(options.dilation >= 0.0f) || !std::isfinite(options.dilation)) {
+    throw InvalidArgument("BspMeshOptions.dilation must be finite and >= 0");
+  }
+  const double dil = options.dilation;
   const int G = options.grid;
   const std::size_t cells = static_cast<std::size_t>(G) * G * G;
   auto coord = [G](int i) { return -1.0f + (2.0f * i + 1.0f) / static_cast<float>(G); };
@@ -97,7 +107,7 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
     const auto& ids = convex_planes[k];
     if (ids.empty()) continue;
     const geometry::Polytope grown =
-        geometry::IntersectHalfSpaces(half_spaces(ids, options.inside_threshold), popt);
+        geometry::IntersectHalfSpaces(half_spaces(ids, options.inside_threshold + dil), popt);
     if (grown.empty()) continue;
     geometry::AABB box;
     for (const auto& v : grown.vertices) box.Extend(v);
@@ -110,7 +120,8 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
     for (int z = lo[2]; z <= hi[2]; ++z) {
       for (int y = lo[1]; y <= hi[1]; ++y) {
         for (int x = lo[0]; x <= hi[0]; ++x) {
-          if (InsideConvex(planes, ids, coord(x), coord(y), coord(z), options.inside_threshold)) {
+          if (InsideConvex(planes, ids, coord(x), coord(y), coord(z), options.inside_threshold,
+                           options.dilation)) {
             const std::uint32_t cell = static_cast<std::uint32_t>(x + G * (y + G * z));
             inside[k].push_back(cell);
             ++count[cell];
@@ -137,7 +148,7 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
     // The mesh is the exact (unshifted) polytope, as bspt's; a convex that holds grid points
     // only within the tolerance has none.
     const geometry::Polytope poly =
-        geometry::IntersectHalfSpaces(half_spaces(convex_planes[k], 0.0), popt);
+        geometry::IntersectHalfSpaces(half_spaces(convex_planes[k], dil), popt);
     if (poly.empty()) continue;
     result.kept_convexes.push_back(static_cast<int>(k));
     const geometry::TriangleMesh part = poly.ToMesh();

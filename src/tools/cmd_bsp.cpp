@@ -16,6 +16,7 @@
 #include "dimr/nn/bsp_model.h"
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/shape_pool.h"
+#include "tools/bsp_options.h"
 #include "tools/command_registry.h"
 #include "tools/sha256.h"
 
@@ -125,6 +126,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
 struct EvalArgs {
   std::string model, data, mesh_dir;
   int limit = 0;
+  float dilation = -1.0f;  // < 0: the model card's recommended value
 };
 
 void RunEval(const EvalArgs& a) {
@@ -135,6 +137,8 @@ void RunEval(const EvalArgs& a) {
   }
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   const auto convexes = model.ConvexPlanes();
+  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
+  std::printf("dilation %.3g\n", dilation);
   const int R = data.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
   std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
@@ -145,9 +149,11 @@ void RunEval(const EvalArgs& a) {
     const Eigen::VectorXf mu =
         codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
-    const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, centers, 0.01f, dilation);
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
-    const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes);
+    pipeline::BspMeshOptions mopt;
+    mopt.dilation = dilation;
+    const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
     const int c = sample.cad_class;
     iou_sum[c] += pipeline::OccupancyIoU(occ, target);
     faces_sum[c] += static_cast<double>(mesh.mesh.faces.size());
@@ -197,6 +203,7 @@ void RunEncodePool(const PoolArgs& a) {
 struct InterpArgs {
   std::string model, data, out_dir;
   int a = 0, b = 1, steps = 5;
+  float dilation = -1.0f;
 };
 
 void RunInterpolate(const InterpArgs& a) {
@@ -212,11 +219,13 @@ void RunInterpolate(const InterpArgs& a) {
   const auto za = model.Encode(sa.grid, sa.cad_class).first;
   const auto zb = model.Encode(sb.grid, sb.cad_class).first;
   const auto convexes = model.ConvexPlanes();
+  pipeline::BspMeshOptions mopt;
+  mopt.dilation = tools::ResolveBspDilation(a.model, a.dilation);
   std::filesystem::create_directories(a.out_dir);
   for (int i = 0; i < a.steps; ++i) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(i) / (a.steps - 1);
     const Eigen::VectorXf z = pipeline::InterpolateCodes(za, zb, t);
-    const auto mesh = pipeline::ExtractBspMesh(model.DecodePlanes(z, sa.cad_class), convexes);
+    const auto mesh = pipeline::ExtractBspMesh(model.DecodePlanes(z, sa.cad_class), convexes, mopt);
     const std::string path = a.out_dir + "/interp_" + std::to_string(i) + ".ply";
     geometry::WritePly(path, mesh.mesh);
     std::printf("t=%.2f  %zu triangles  %s\n", t, mesh.mesh.faces.size(), path.c_str());
@@ -227,6 +236,7 @@ void RunInterpolate(const InterpArgs& a) {
 struct BenchArgs {
   std::string model, data, json;
   int count = 20;
+  float dilation = -1.0f;
 };
 
 double Median(std::vector<double> v) {
@@ -245,6 +255,8 @@ void RunBench(const BenchArgs& a) {
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   const double encode_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const auto convexes = model.ConvexPlanes();
+  pipeline::BspMeshOptions mopt;
+  mopt.dilation = tools::ResolveBspDilation(a.model, a.dilation);
   std::vector<double> decode_ms, mesh_ms, total_ms, tris;
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     const Eigen::VectorXf mu =
@@ -252,7 +264,7 @@ void RunBench(const BenchArgs& a) {
     auto t1 = Clock::now();
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, data.samples[s].cad_class);
     auto t2 = Clock::now();
-    const auto mesh = pipeline::ExtractBspMesh(planes, convexes);
+    const auto mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
     auto t3 = Clock::now();
     decode_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
     mesh_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t2).count());
@@ -312,6 +324,7 @@ void SetupEval(CLI::App& app) {
   app.add_option("--data", a->data)->required();
   app.add_option("--mesh-dir", a->mesh_dir, "write the decoded meshes here");
   app.add_option("--limit", a->limit, "evaluate at most this many shapes");
+  tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunEval(*a); });
 }
 
@@ -331,6 +344,7 @@ void SetupInterp(CLI::App& app) {
   app.add_option("--b", a->b);
   app.add_option("--steps", a->steps)->check(CLI::Range(1, 100));
   app.add_option("--out-dir", a->out_dir)->required();
+  tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunInterpolate(*a); });
 }
 
@@ -340,6 +354,7 @@ void SetupBench(CLI::App& app) {
   app.add_option("--data", a->data)->required();
   app.add_option("--count", a->count)->check(CLI::Range(1, 100000));
   app.add_option("--json", a->json);
+  tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunBench(*a); });
 }
 

@@ -18,6 +18,7 @@
 #include "dimr/pipeline/bsp_data.h"
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/shape_pool.h"
+#include "tools/bsp_options.h"
 #include "tools/command_registry.h"
 #include "tools/render.h"
 
@@ -99,6 +100,7 @@ void SetupPrepare(CLI::App& app) {
 
 // ---------------------------------------------------------------- render
 struct RenderArgs {
+  float dilation = -1.0f;
   std::string model, out, interp_out;
   int per_class = 3;
   std::uint64_t seed = 3;
@@ -111,9 +113,11 @@ struct RenderArgs {
 tools::RenderTile Reconstruct(const nn::BspModel& model,
                               const std::vector<std::vector<int>>& convexes,
                               const Eigen::VectorXf& mu, int c, const geometry::Vec3& scale,
-                              const nn::BspSample* sample) {
+                              const nn::BspSample* sample, float dilation) {
   const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-  const pipeline::BspMeshResult r = pipeline::ExtractBspMesh(planes, convexes);
+  pipeline::BspMeshOptions mopt;
+  mopt.dilation = dilation;
+  const pipeline::BspMeshResult r = pipeline::ExtractBspMesh(planes, convexes, mopt);
   tools::RenderTile t;
   t.mesh = r.mesh;
   t.scale = scale;
@@ -121,7 +125,8 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
     t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
   if (sample) {
     const int R = model.config().resolution;
-    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R));
+    const auto occ =
+        pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R), 0.01f, dilation);
     const double iou = pipeline::OccupancyIoU(occ, sample->iou_grid);
     t.label = "bsp iou " + std::to_string(static_cast<int>(100 * iou));
   }
@@ -131,6 +136,7 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
 void RunRender(const RenderArgs& a) {
   const nn::BspModel model = nn::BspModel::Load(a.model);
   const auto convexes = model.ConvexPlanes();
+  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
   pipeline::BspSampleOptions opt;
   opt.resolution = model.config().resolution;
   auto original = [&](int c, int i, nn::BspSample* sample) {
@@ -150,7 +156,7 @@ void RunRender(const RenderArgs& a) {
       nn::BspSample sample;
       tools::RenderTile orig = original(c, i, &sample);
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
-      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample));
+      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample, dilation));
       tiles.insert(tiles.end() - 1, std::move(orig));
     }
   }
@@ -168,8 +174,8 @@ void RunRender(const RenderArgs& a) {
   for (int s = 0; s < a.steps; ++s) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(s) / (a.steps - 1);
     const geometry::Vec3 scale = (1 - t) * ta.scale + t * tb.scale;
-    tools::RenderTile tile =
-        Reconstruct(model, convexes, pipeline::InterpolateCodes(za, zb, t), c, scale, nullptr);
+    tools::RenderTile tile = Reconstruct(model, convexes, pipeline::InterpolateCodes(za, zb, t), c,
+                                         scale, nullptr, dilation);
     tile.label = "t " + std::to_string(static_cast<int>(std::lround(100 * t)));
     strip.push_back(std::move(tile));
   }
@@ -188,6 +194,7 @@ void SetupRender(CLI::App& app) {
   app.add_option("--tile", a->tile, "pixels per tile")->check(CLI::Range(32, 1024));
   app.add_option("--interp-class", a->interp_class);
   app.add_option("--steps", a->steps)->check(CLI::Range(1, 20));
+  tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunRender(*a); });
 }
 
@@ -197,6 +204,7 @@ const Registrar kRender("bsp", "render",
 
 // ---------------------------------------------------------------- eval-cad
 struct EvalCadArgs {
+  float dilation = -1.0f;
   std::string model;
   int per_class = 25;
   std::uint64_t seed = 3;
@@ -212,6 +220,10 @@ void RunEvalCad(const EvalCadArgs& a) {
   opt.resolution = model.config().resolution;
   const int R = opt.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
+  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
+  pipeline::BspMeshOptions mopt;
+  mopt.dilation = dilation;
+  std::printf("dilation %.3g\n\n", dilation);
   std::printf(
       "| class | shapes | IoU@32^3 | Chamfer (x 1e-2) | empty meshes |\n|---|---|---|---|---|\n");
   double all_iou = 0, all_cd = 0;
@@ -226,10 +238,10 @@ void RunEvalCad(const EvalCadArgs& a) {
           pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
       const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-      const auto occ = pipeline::BspOccupancy(planes, convexes, centers);
+      const auto occ = pipeline::BspOccupancy(planes, convexes, centers, 0.01f, dilation);
       iou_sum += pipeline::OccupancyIoU(occ, sample.iou_grid);
       ++n;
-      const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes).mesh;
+      const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes, mopt).mesh;
       if (decoded.faces.empty()) {
         ++empty;
         continue;
@@ -255,6 +267,7 @@ void SetupEvalCad(CLI::App& app) {
   app.add_option("--model", a->model, "BSP-CVAE weights")->required();
   app.add_option("--per-class", a->per_class)->check(CLI::Range(1, 10000));
   app.add_option("--seed", a->seed, "model stream (as `bsp prepare --seed`; 3 = the test split)");
+  tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunEvalCad(*a); });
 }
 

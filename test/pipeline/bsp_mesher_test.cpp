@@ -94,6 +94,41 @@ TEST(BspMesher, OccupancyMatchesTheExtractedPartsAwayFromFaces) {
   EXPECT_GT(checked, 3500);
 }
 
+// A dilation moves every plane outwards (unit normals here: by the dilation in metres): the
+// parts grow, the contradictory convex stays empty, and the occupancy is the grown parts.
+TEST(BspMesher, DilationGrowsPartsAndOccupancyAlike) {
+  const Scene s = MakeScene();
+  BspMeshOptions opt;
+  opt.dilation = 0.1f;
+  const BspMeshResult r = ExtractBspMesh(s.planes, s.convexes, opt);
+  EXPECT_EQ(r.nonempty_convexes, 3);
+  ASSERT_EQ(r.kept_convexes, (std::vector<int>{0, 2}));
+  // [-0.6, 0.6]^3 and [0.2, 1.0]^3 (clipped at the bound 1).
+  EXPECT_NEAR(r.mesh.SignedVolume(), 1.2 * 1.2 * 1.2 + 0.8 * 0.8 * 0.8, 1e-5);
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Eigen::MatrixX3f pts(3000, 3);
+  for (int i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), u(rng);
+  const auto occ = BspOccupancy(s.planes, s.convexes, pts, 0.01f, 0.1f);
+  int checked = 0;
+  for (int i = 0; i < pts.rows(); ++i) {
+    const Eigen::Vector3f p = pts.row(i);
+    auto in_box = [&](float lo, float hi, float margin) {
+      return (p.array() > lo + margin).all() && (p.array() < hi - margin).all();
+    };
+    const bool inside = in_box(-0.6f, 0.6f, 0.f) || in_box(0.2f, 1.0f, 0.f);
+    const bool near_face = in_box(-0.6f, 0.6f, -0.02f) != in_box(-0.6f, 0.6f, 0.02f) ||
+                           in_box(0.2f, 1.0f, -0.02f) != in_box(0.2f, 1.0f, 0.02f);
+    if (near_face) continue;
+    ++checked;
+    EXPECT_EQ(occ[i] != 0, inside) << p.transpose();
+  }
+  EXPECT_GT(checked, 2500);
+  opt.dilation = -0.1f;
+  EXPECT_THROW(ExtractBspMesh(s.planes, s.convexes, opt), InvalidArgument);
+  EXPECT_THROW(BspOccupancy(s.planes, s.convexes, pts, 0.01f, -1.0f), InvalidArgument);
+}
+
 TEST(BspMesher, RejectsBadInput) {
   Scene s = MakeScene();
   s.convexes[0].push_back(999);

@@ -19,6 +19,11 @@ struct BspMeshOptions {
   int grid = 32;                   // evaluation grid (reference: 32^3)
   float inside_threshold = 0.01f;  // inside convex iff sum of plane excesses < threshold
   double bound = 1.0;              // polytopes are clipped to [-bound, bound]^3
+  // Every plane moved outwards by this much (plane units: a x + b y + c z + d <= dilation) for
+  // both the grid test and the polytopes, so meshes and occupancy stay one shape. 0 = the
+  // reference. The decoder under-covers thin parts; a dilation chosen on validation shapes
+  // counters that (docs/models.md).
+  float dilation = 0.0f;
 };
 
 struct BspMeshResult {
@@ -36,11 +41,11 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
                              const BspMeshOptions& options = BspMeshOptions());
 
 // Occupancy of the discrete BSP shape at points (N x 3): inside iff some convex has all its
-// planes' summed excess below the threshold.
+// planes' summed excess (over the planes moved outwards by `dilation`) below the threshold.
 std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
                                        const Eigen::MatrixX3f& points,
-                                       float inside_threshold = 0.01f);
+                                       float inside_threshold = 0.01f, float dilation = 0.0f);
 
 // Cell centres of an R^3 grid over [-1, 1]^3 (x fastest), the points the BSP occupancy and
 // the IoU@R^3 are evaluated at.
