@@ -4,6 +4,8 @@
 
 #include <map>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "dimr/geometry/error.h"
 
@@ -71,27 +73,41 @@ TEST(BspMesher, KeepsNonRedundantConvexesAsClosedPolytopes) {
   for (const auto& v : r.mesh.vertices) EXPECT_TRUE(v.allFinite());
 }
 
-TEST(BspMesher, OccupancyMatchesTheExtractedPartsAwayFromFaces) {
-  const Scene s = MakeScene();
-  std::mt19937 rng(4);
+Eigen::MatrixX3f RandomPoints(int n, unsigned seed) {
+  std::mt19937 rng(seed);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
-  Eigen::MatrixX3f pts(4000, 3);
+  Eigen::MatrixX3f pts(n, 3);
   for (int i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), u(rng);
-  const auto occ = BspOccupancy(s.planes, s.convexes, pts);
+  return pts;
+}
+
+// Expects occupancy == inside one of the cubes [lo, hi]^3 for every point farther than 2 cm from
+// their faces; returns how many points were checked.
+int ExpectCubeOccupancy(const Eigen::MatrixX3f& pts, const std::vector<std::uint8_t>& occ,
+                        const std::vector<std::pair<float, float>>& cubes) {
   int checked = 0;
   for (int i = 0; i < pts.rows(); ++i) {
     const Eigen::Vector3f p = pts.row(i);
-    auto in_box = [&](float lo, float hi, float margin) {
-      return (p.array() > lo + margin).all() && (p.array() < hi - margin).all();
+    auto in_cube = [&](const std::pair<float, float>& c, float margin) {
+      return (p.array() > c.first + margin).all() && (p.array() < c.second - margin).all();
     };
-    const bool inside = in_box(-0.5f, 0.5f, 0.f) || in_box(0.3f, 0.9f, 0.f);
-    const bool near_face = in_box(-0.5f, 0.5f, -0.02f) != in_box(-0.5f, 0.5f, 0.02f) ||
-                           in_box(0.3f, 0.9f, -0.02f) != in_box(0.3f, 0.9f, 0.02f);
+    bool inside = false, near_face = false;
+    for (const auto& c : cubes) {
+      inside = inside || in_cube(c, 0.f);
+      near_face = near_face || in_cube(c, -0.02f) != in_cube(c, 0.02f);
+    }
     if (near_face) continue;
     ++checked;
     EXPECT_EQ(occ[i] != 0, inside) << p.transpose();
   }
-  EXPECT_GT(checked, 3500);
+  return checked;
+}
+
+TEST(BspMesher, OccupancyMatchesTheExtractedPartsAwayFromFaces) {
+  const Scene s = MakeScene();
+  const Eigen::MatrixX3f pts = RandomPoints(4000, 4);
+  const auto occ = BspOccupancy(s.planes, s.convexes, pts);
+  EXPECT_GT(ExpectCubeOccupancy(pts, occ, {{-0.5f, 0.5f}, {0.3f, 0.9f}}), 3500);
 }
 
 // A dilation moves every plane outwards (unit normals here: by the dilation in metres): the
@@ -105,25 +121,9 @@ TEST(BspMesher, DilationGrowsPartsAndOccupancyAlike) {
   ASSERT_EQ(r.kept_convexes, (std::vector<int>{0, 2}));
   // [-0.6, 0.6]^3 and [0.2, 1.0]^3 (clipped at the bound 1).
   EXPECT_NEAR(r.mesh.SignedVolume(), 1.2 * 1.2 * 1.2 + 0.8 * 0.8 * 0.8, 1e-5);
-  std::mt19937 rng(5);
-  std::uniform_real_distribution<float> u(-1.f, 1.f);
-  Eigen::MatrixX3f pts(3000, 3);
-  for (int i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), u(rng);
+  const Eigen::MatrixX3f pts = RandomPoints(3000, 5);
   const auto occ = BspOccupancy(s.planes, s.convexes, pts, 0.01f, 0.1f);
-  int checked = 0;
-  for (int i = 0; i < pts.rows(); ++i) {
-    const Eigen::Vector3f p = pts.row(i);
-    auto in_box = [&](float lo, float hi, float margin) {
-      return (p.array() > lo + margin).all() && (p.array() < hi - margin).all();
-    };
-    const bool inside = in_box(-0.6f, 0.6f, 0.f) || in_box(0.2f, 1.0f, 0.f);
-    const bool near_face = in_box(-0.6f, 0.6f, -0.02f) != in_box(-0.6f, 0.6f, 0.02f) ||
-                           in_box(0.2f, 1.0f, -0.02f) != in_box(0.2f, 1.0f, 0.02f);
-    if (near_face) continue;
-    ++checked;
-    EXPECT_EQ(occ[i] != 0, inside) << p.transpose();
-  }
-  EXPECT_GT(checked, 2500);
+  EXPECT_GT(ExpectCubeOccupancy(pts, occ, {{-0.6f, 0.6f}, {0.2f, 1.0f}}), 2500);
   opt.dilation = -0.1f;
   EXPECT_THROW(ExtractBspMesh(s.planes, s.convexes, opt), InvalidArgument);
   EXPECT_THROW(BspOccupancy(s.planes, s.convexes, pts, 0.01f, -1.0f), InvalidArgument);
