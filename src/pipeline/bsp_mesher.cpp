@@ -44,6 +44,12 @@ inline bool InsideConvex(const Eigen::MatrixXf& planes, const std::vector<int>& 
   return true;
 }
 
+void CheckDilation(float dilation) {
+  if (!(dilation >= 0.0f) || !std::isfinite(dilation)) {
+    throw InvalidArgument("BSP dilation must be finite and >= 0, got " + std::to_string(dilation));
+  }
+}
+
 }  // namespace
 
 std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
@@ -51,9 +57,7 @@ std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const Eigen::MatrixX3f& points, float inside_threshold,
                                        float dilation) {
   CheckInputs(planes, convex_planes);
-  if (!(dilation >= 0.0f) || !std::isfinite(dilation)) {
-    throw InvalidArgument("BSP dilation must be finite and >= 0");
-  }
+  CheckDilation(dilation);
   std::vector<std::uint8_t> out(static_cast<std::size_t>(points.rows()), 0);
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     for (const auto& ids : convex_planes) {
@@ -75,9 +79,7 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
   if (options.grid < 2 || options.grid > 256) {
     throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
   }
-  if (!(options.dilation >= 0.0f) || !std::isfinite(options.dilation)) {
-    throw InvalidArgument("BspMeshOptions.dilation must be finite and >= 0");
-  }
+  CheckDilation(options.dilation);
   const double dil = options.dilation;
   const int G = options.grid;
   const std::size_t cells = static_cast<std::size_t>(G) * G * G;
@@ -145,8 +147,8 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
       for (std::uint32_t cell : inside[k]) --count[cell];
       continue;
     }
-    // The mesh is the exact (unshifted) polytope, as bspt's; a convex that holds grid points
-    // only within the tolerance has none.
+    // The mesh is the exact polytope of the (dilated) planes, as bspt's without dilation; a
+    // convex that holds grid points only within the tolerance has none.
     const geometry::Polytope poly =
         geometry::IntersectHalfSpaces(half_spaces(convex_planes[k], dil), popt);
     if (poly.empty()) continue;

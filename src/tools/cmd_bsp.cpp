@@ -149,10 +149,11 @@ void RunEval(const EvalArgs& a) {
     const Eigen::VectorXf mu =
         codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
-    const auto occ = pipeline::BspOccupancy(planes, convexes, centers, 0.01f, dilation);
-    const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
     pipeline::BspMeshOptions mopt;
     mopt.dilation = dilation;
+    const auto occ =
+        pipeline::BspOccupancy(planes, convexes, centers, mopt.inside_threshold, mopt.dilation);
+    const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
     const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
     const int c = sample.cad_class;
     iou_sum[c] += pipeline::OccupancyIoU(occ, target);

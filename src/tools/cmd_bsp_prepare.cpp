@@ -125,8 +125,8 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
     t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
   if (sample) {
     const int R = model.config().resolution;
-    const auto occ =
-        pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R), 0.01f, dilation);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R),
+                                            mopt.inside_threshold, mopt.dilation);
     const double iou = pipeline::OccupancyIoU(occ, sample->iou_grid);
     t.label = "bsp iou " + std::to_string(static_cast<int>(100 * iou));
   }
@@ -238,7 +238,8 @@ void RunEvalCad(const EvalCadArgs& a) {
           pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
       const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-      const auto occ = pipeline::BspOccupancy(planes, convexes, centers, 0.01f, dilation);
+      const auto occ =
+          pipeline::BspOccupancy(planes, convexes, centers, mopt.inside_threshold, dilation);
       iou_sum += pipeline::OccupancyIoU(occ, sample.iou_grid);
       ++n;
       const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes, mopt).mesh;
