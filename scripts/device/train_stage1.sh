@@ -7,29 +7,14 @@
 # over the time budget. Results (weights, model card, logs) land in $OUT (default out/device).
 #   BUDGET=545 SCENES=480 scripts/device/train_stage1.sh
 set -o pipefail
-OUT=${OUT:-out/device}
-mkdir -p "$OUT"
-T0=$(date +%s)
+source scripts/device/host_setup.sh
 BUDGET=${BUDGET:-560}
 SCENES=${SCENES:-480}
-el() { echo $(( $(date +%s) - T0 )); }
-D=$PWD/.devdeps
-L=$D/lib/x86_64-linux-gnu
-xz -T0 -dc "$D/xz/libembree3.so.3.13.5.xz" > "$L/libembree3.so.3.13.5" || exit 1
-ln -sf libembree3.so.3.13.5 "$L/libembree3.so.3"
-ln -sf libtbb.so.12.8 "$L/libtbb.so.12"
-ln -sf libyaml-cpp.so.0.7.0 "$L/libyaml-cpp.so.0.7"
-ln -sf libyaml-cpp.so.0.7 "$L/libyaml-cpp.so"
-export LD_LIBRARY_PATH=$L:${LD_LIBRARY_PATH:-}
-export DIMR_DEPS_PREFIX=$D DIMR_JOBS=16
-nvidia-smi -L; nproc; g++ --version | head -1
-python3 -c 'import torch; print("torch", torch.__version__, "cuda", torch.cuda.is_available())'
-scripts/build_training_host.sh > "$OUT/build.log" 2>&1 || { tail -80 "$OUT/build.log"; exit 1; }
-B=build-host/bin/dimr
-echo "build done at $(el) s"; $B --help | head -30
+SYNTH_JOBS=${SYNTH_JOBS:-$(nproc)}
+THREADS=${THREADS:-8}
 mkdir -p /tmp/ss
 $B synth --scenes 20 --seed 1 --split val --jobs 4 --quiet --out /tmp/ss/val > /tmp/ss/val.log 2>&1 &
-$B synth --scenes "$SCENES" --seed 1 --split train --jobs 16 --quiet --out /tmp/ss/train \
+$B synth --scenes "$SCENES" --seed 1 --split train --jobs "$SYNTH_JOBS" --quiet --out /tmp/ss/train \
   > /tmp/ss/train.log 2>&1 || { tail -20 /tmp/ss/train.log; exit 1; }
 wait
 tail -n 3 /tmp/ss/train.log /tmp/ss/val.log
@@ -37,10 +22,10 @@ echo "synth done at $(el) s"
 LEFT=$(( BUDGET - $(el) - 45 ))
 MAXMIN=$(python3 -c "print(round(max(0.5, $LEFT/60), 3))")
 echo "training for $MAXMIN min"
-OMP_NUM_THREADS=8 $B train stage1 --train /tmp/ss/train --val /tmp/ss/val --out /tmp/s1 \
+OMP_NUM_THREADS=$THREADS $B train stage1 --train /tmp/ss/train --val /tmp/ss/val --out /tmp/s1 \
   --init models/stage1/stage1.pt --config "scale=20 rgb=1 widths=16,32,48,64,96,128 reps=1 classes=25" \
-  --epochs 400 --batch 8 --lr 1e-3 --lr-decay 0.05 --seed 124 --threads 8 --loader-threads 6 \
-  --data-threads 16 --device cuda --max-minutes "$MAXMIN" --lr-by-time --checkpoint-every 100000 \
+  --epochs 400 --batch 8 --lr "${LR:-1e-3}" --lr-decay 0.05 --seed 124 --threads "$THREADS" --loader-threads 6 \
+  --data-threads "$SYNTH_JOBS" --device "${DEVICE:-cuda}" --max-minutes "$MAXMIN" --lr-by-time --checkpoint-every 100000 \
   --val-scenes 20 --val-every 4 --no-elastic --class-weights sqrt-inverse > "$OUT/train.log" 2>&1
 echo "train exit $? at $(el) s"
 tr '\r' '\n' < "$OUT/train.log" | grep -v '^\[epoch' | tail -30

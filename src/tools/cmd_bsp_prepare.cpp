@@ -1,12 +1,15 @@
 // `dimr bsp prepare`: BSP-CVAE training sets from the procedural CAD library.
 #include <Eigen/Core>
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
+#include <mutex>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "dimr/data/cad_library.h"
@@ -51,6 +54,7 @@ struct PrepareArgs {
   std::uint64_t seed = 1;
   std::string classes = "all";
   int resolution = 32;
+  int jobs = 1;
 };
 
 // Model seeds: disjoint streams per (seed, class) so train/val/test never share models.
@@ -66,18 +70,44 @@ void RunPrepare(const PrepareArgs& a) {
   opt.resolution = a.resolution;
   const auto classes = ParseClasses(a.classes);
   const auto t0 = std::chrono::steady_clock::now();
-  std::size_t done = 0;
   const std::size_t total = classes.size() * static_cast<std::size_t>(a.per_class);
-  for (int c : classes) {
-    for (int i = 0; i < a.per_class; ++i) {
-      const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
-      const data::CadModel m = data::GenerateCadModel(c, model_seed);
-      data.samples.push_back(
-          pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, model_seed ^ 0x9e3779b97f4a7c15ull));
-      ++done;
-      std::fprintf(stderr, "\rprepare: %zu/%zu shapes", done, total);
+  // Each shape depends only on its (seed, class, index), so the output is the same for any
+  // number of jobs: workers take the next index and write into its own slot.
+  data.samples.resize(total);
+  std::atomic<std::size_t> next{0}, done{0};
+  std::mutex error_mutex;
+  std::string error;
+  auto worker = [&]() {
+    for (std::size_t k = next++; k < total; k = next++) {
+      const int c = classes[k / static_cast<std::size_t>(a.per_class)];
+      const int i = static_cast<int>(k % static_cast<std::size_t>(a.per_class));
+      try {
+        const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
+        const data::CadModel m = data::GenerateCadModel(c, model_seed);
+        data.samples[k] =
+            pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, model_seed ^ 0x9e3779b97f4a7c15ull);
+      } catch (const std::exception& e) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        if (error.empty()) {
+          error = "shape " + std::to_string(i) + " of class " + data::CadClassNames()[c] + ": " +
+                  e.what();
+        }
+        next = total;
+      }
+      const std::size_t d = ++done;
+      if (a.jobs == 1 || d % 16 == 0 || d == total) {
+        std::lock_guard<std::mutex> lock(error_mutex);
+        std::fprintf(stderr, "\rprepare: %zu/%zu shapes", d, total);
+      }
     }
-  }
+  };
+  const int jobs = a.jobs > 0 ? a.jobs
+                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  std::vector<std::thread> pool;
+  for (int j = 1; j < std::min<int>(jobs, static_cast<int>(total)); ++j) pool.emplace_back(worker);
+  worker();
+  for (auto& t : pool) t.join();
+  if (!error.empty()) throw InvalidArgument("bsp prepare: " + error);
   std::fprintf(stderr, "\n");
   data.Save(a.out);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -95,6 +125,8 @@ void SetupPrepare(CLI::App& app) {
   app.add_option("--classes", a->classes, "'all' or a comma list of class names");
   app.add_option("--resolution", a->resolution, "encoder grid resolution")
       ->check(CLI::IsMember({8, 16, 32, 64, 128}));
+  app.add_option("--jobs", a->jobs, "worker threads (0 = all cores); the output does not depend on it")
+      ->check(CLI::Range(0, 1024));
   app.callback([a]() { RunPrepare(*a); });
 }
 
