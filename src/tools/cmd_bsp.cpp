@@ -29,6 +29,8 @@ const char* kClassNames[8] = {"table",     "chair",   "bookshelf", "sofa",
 // ---------------------------------------------------------------- train
 struct TrainArgs {
   std::string train, val, out, config = "cpu", epochs = "60,30,0", device = "cpu";
+  std::string init;  // start from these weights (fine-tuning); their configuration is used
+  bool config_given = false;
   int batch = 16, points = 1024, threads = 0, checkpoint_every = 5;
   double lr = 1e-4, kl = 0.01, max_minutes = 0, phase0_minutes = 0;
   int lr_step = 200;
@@ -58,6 +60,7 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "  seed: " << a.seed << "\n";
   y << "  train_data: \"" << a.train << "\"\n";
   y << "  val_data: \"" << a.val << "\"\n";
+  if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
@@ -99,7 +102,20 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.checkpoint_path = a.out + "/checkpoint.pt";
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
-  nn::BspModel model(config, a.seed);
+  nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
+  if (!a.init.empty()) {
+    if (a.config_given && model.config().ToString() != config.ToString()) {
+      throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
+                            model.config().ToString() + "', not the --config '" +
+                            config.ToString() + "'");
+    }
+    std::printf("initialised from %s (trained through phase %d)\n", a.init.c_str(),
+                model.phase());
+    if (model.phase() > 0 && opt.epochs_phase0 > 0) {
+      std::printf("note: --init is a phase-%d model; --epochs starts with %d continuous epochs\n",
+                  model.phase(), opt.epochs_phase0);
+    }
+  }
   std::printf("BSP-CVAE %s, %lld parameters, %zu training shapes, %zu validation shapes\n",
               config.ToString().c_str(), static_cast<long long>(model.NumParameters()),
               train.samples.size(), val.samples.size());
@@ -296,7 +312,10 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--train", a->train, "training dataset (dimr bsp prepare)")->required();
   app.add_option("--val", a->val, "validation dataset");
   app.add_option("--out", a->out, "output model directory")->required();
-  app.add_option("--config", a->config, "cpu | reference | 'key=value ...'");
+  auto* config_opt = app.add_option("--config", a->config, "cpu | reference | 'key=value ...'");
+  app.add_option("--init", a->init,
+                 "start from this model's weights (e.g. --epochs 0,N,0 continues the discrete "
+                 "phase); --config, if given, must match it");
   app.add_option("--epochs", a->epochs, "epochs of phases 0,1,2");
   app.add_option("--batch", a->batch)->check(CLI::Range(2, 4096));
   app.add_option("--points", a->points, "query points per shape and step")
@@ -313,8 +332,9 @@ void SetupTrain(CLI::App& app) {
       ->check(CLI::Range(1, 1000000));
   app.add_option("--checkpoint-every", a->checkpoint_every);
   app.add_flag("--fp32", a->fp32, "store the final weights in fp32 instead of fp16");
-  app.callback([a, &app]() {
+  app.callback([a, &app, config_opt]() {
     a->fp16 = !a->fp32;
+    a->config_given = config_opt->count() > 0;
     RunTrain(*a, CommandLine(app));
   });
 }

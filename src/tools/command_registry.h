@@ -30,6 +30,11 @@ inline std::string CommandLine(const CLI::App& app) {
   for (const CLI::App* a : chain) out += " " + a->get_name();
   for (const CLI::Option* o : app.get_options()) {
     if (o->count() == 0 || o->get_name() == "--help") continue;
+    if (o->get_expected_max() == 0) {  // a flag: no separate value ("--flag", or "--flag=false")
+      const std::string v = o->results().empty() ? "true" : o->results().back();
+      out += " " + o->get_name() + (v == "true" || v == "1" ? "" : "=" + v);
+      continue;
+    }
     out += " " + o->get_name();
     for (const auto& r : o->results()) {
       // Quote values a shell would split or expand, so the line can be pasted back.

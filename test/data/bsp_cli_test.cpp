@@ -6,7 +6,9 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <regex>
+#include <sstream>
 #include <string>
 
 #include "cli_run.h"
@@ -64,6 +66,68 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
   EXPECT_NE(rc, 0);
   EXPECT_NE(out.find("model.yaml"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
+
+std::string ReadAll(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+// `bsp prepare --jobs`: the same bytes for any number of worker threads.
+TEST(BspCli, PrepareIsIndependentOfJobs) {
+  if (RunCli("bsp prepare --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
+  const fs::path dir = fs::temp_directory_path() / ("bsp_jobs_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string d = dir.string();
+  auto [rc, out] = RunCli("bsp prepare --per-class 2 --seed 9 --jobs 1 --out " + d + "/a.bin");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = RunCli("bsp prepare --per-class 2 --seed 9 --jobs 3 --out " + d + "/b.bin");
+  ASSERT_EQ(rc, 0) << out;
+  const std::string a = ReadAll(dir / "a.bin"), b = ReadAll(dir / "b.bin");
+  EXPECT_GT(a.size(), 16u * 1000u);  // 16 shapes of a 32^3 grid and query points
+  EXPECT_TRUE(a == b) << "outputs differ with the job count";
+  fs::remove_all(dir);
+}
+
+// `train bsp --init`: continues the bundled model in the discrete phase; the model card names
+// the start and records a command line that runs again as written (flags without values).
+TEST(BspCli, TrainInitContinuesAModel) {
+  if (RunCli("train bsp --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
+  const fs::path dir = fs::temp_directory_path() / ("bsp_init_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::string d = dir.string();
+  const std::string init = (fs::path(DIMR_SOURCE_DIR) / "models/bsp/bsp.pt").string();
+  auto [rc, out] = RunCli("bsp prepare --per-class 1 --seed 5 --jobs 2 --out " + d + "/data.bin");
+  ASSERT_EQ(rc, 0) << out;
+  const std::string train = "train bsp --train " + d + "/data.bin --epochs 0,1,0 --batch 4 " +
+                            "--points 256 --threads 1 --fp32 --init " + init;
+  std::tie(rc, out) = RunCli(train + " --out " + d + "/run");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("initialised from"), std::string::npos) << out;
+  EXPECT_NE(out.find("phase 1"), std::string::npos) << out;  // no continuous epoch ran
+  const std::string card = ReadAll(dir / "run/model.yaml");
+  EXPECT_NE(card.find("initialised_from: \"" + init + "\""), std::string::npos) << card;
+  EXPECT_NE(card.find("phase: 1"), std::string::npos) << card;
+  EXPECT_NE(card.find("dtype: float32"), std::string::npos) << card;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(card, m, std::regex("command: \"dimr ([^\"]*)\"")));
+  const std::string again = m[1];
+  EXPECT_NE(again.find(" --fp32"), std::string::npos) << again;
+  EXPECT_EQ(again.find("--fp32 true"), std::string::npos) << again;
+  // The recorded line runs as written (into another folder).
+  std::tie(rc, out) = RunCli(std::regex_replace(again, std::regex("--out \\S+"), "--out " + d + "/again"));
+  EXPECT_EQ(rc, 0) << again << "\n" << out;
+  // The trained weights load and decode.
+  std::tie(rc, out) = RunCli("bsp eval --model " + d + "/run/bsp.pt --data " + d + "/data.bin");
+  EXPECT_EQ(rc, 0) << out;
+  EXPECT_GE(AllIoU(out), 0.0) << out;
+  // A --config that differs from the --init model is refused, naming both.
+  std::tie(rc, out) = RunCli(train + " --out " + d + "/bad --config reference");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("--init"), std::string::npos) << out;
   fs::remove_all(dir);
 }
 #endif
