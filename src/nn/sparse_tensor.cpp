@@ -252,6 +252,18 @@ const Rulebook& SparseContext::Down(int64_t stride) {
   return *fine.down;
 }
 
+void SparseContext::BuildKernelMaps(int levels) {
+  if (levels < 1 || levels > 16) {
+    throw InvalidArgument("sparse tensor: kernel maps for " + std::to_string(levels) +
+                          " levels (1 to 16)");
+  }
+  int64_t stride = 1;
+  for (int l = 0; l < levels; ++l, stride *= 2) {
+    Subm3(stride);
+    if (l + 1 < levels) Down(stride);
+  }
+}
+
 SparseTensor::SparseTensor(const at::Tensor& coords, at::Tensor features,
                            std::array<int64_t, 3> spatial_shape, int64_t batch_size)
     : features_(std::move(features)),

@@ -320,13 +320,16 @@ struct Stage1Model::Impl {
     const auto t0 = std::chrono::steady_clock::now();
     Voxelized v = Voxelize(t.voxel, t.features, t.batch_size);
     const auto t1 = std::chrono::steady_clock::now();
+    v.tensor.context()->BuildKernelMaps(static_cast<int>(config.widths.size()));
+    const auto t1b = std::chrono::steady_clock::now();
     torch::Tensor f = net->Backbone(v.tensor, v.map);
     const auto t2 = std::chrono::steady_clock::now();
     HeadOutput h = net->Heads(f);
     if (timing) {
       const auto t3 = std::chrono::steady_clock::now();
       timing->voxelize_ms = Ms(t0, t1);
-      timing->unet_ms = Ms(t1, t2);
+      timing->kernel_map_ms = Ms(t1, t1b);
+      timing->unet_ms = Ms(t1b, t2);
       timing->heads_ms = Ms(t2, t3);
     }
     return h;
@@ -576,6 +579,7 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
       Stage1StepLog s;
       s.data_ms = Ms(t_wait, t_data);
       s.voxelize_ms = timing.voxelize_ms;
+      s.kernel_map_ms = timing.kernel_map_ms;
       s.unet_ms = timing.unet_ms;
       s.loss_ms = timing.heads_ms + Ms(t_fwd, t_loss);
       s.backward_ms = Ms(t_loss, t_bwd);
@@ -595,7 +599,7 @@ std::vector<Stage1StepLog> Stage1Model::Train(const std::vector<Stage1Sample>& t
       running.heading_res += l.terms.heading_res;
       ++running_n;
       running_ms[0] += s.data_ms;
-      running_ms[1] += s.voxelize_ms + s.unet_ms + s.loss_ms;
+      running_ms[1] += s.voxelize_ms + s.kernel_map_ms + s.unet_ms + s.loss_ms;
       running_ms[2] += s.backward_ms + s.optimizer_ms;
       if (opt.progress) {
         const double k = 1.0 / running_n;

@@ -268,7 +268,7 @@ struct TrainArgs {
 void OpenStepLog(const std::string& path, long long first_step, std::ofstream* csv) {
   const char* header =
       "step,epoch,lr,loss,semantic,offset_norm,offset_dir,heading_cls,heading_res,seconds,"
-      "data_ms,voxelize_ms,unet_ms,loss_ms,backward_ms,optimizer_ms";
+      "data_ms,voxelize_ms,kernel_map_ms,unet_ms,loss_ms,backward_ms,optimizer_ms";
   std::vector<std::string> keep;
   if (std::ifstream in(path); in) {
     std::string line;
@@ -419,7 +419,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         csv << s.step << "," << s.epoch << "," << s.lr << "," << s.loss.total << ","
             << s.loss.semantic << "," << s.loss.offset_norm << "," << s.loss.offset_dir << ","
             << s.loss.heading_cls << "," << s.loss.heading_res << "," << s.seconds << ","
-            << s.data_ms << "," << s.voxelize_ms << "," << s.unet_ms << "," << s.loss_ms << ","
+            << s.data_ms << "," << s.voxelize_ms << "," << s.kernel_map_ms << "," << s.unet_ms << "," << s.loss_ms << ","
             << s.backward_ms << "," << s.optimizer_ms << "\n";
         if (s.step % 20 == 0) csv.flush();
       },
@@ -610,7 +610,7 @@ void RunBench(const BenchArgs& a) {
   }
   const std::vector<int> rfs_to_cad = RfsToCadTable();
   const pipeline::Stage1InstanceConfig cfg;
-  std::vector<double> vox, unet, heads, clus, total;
+  std::vector<double> vox, kmap, unet, heads, clus, total;
   std::vector<long long> npts;
   for (int rep = 0; rep < a.repeats + 1; ++rep) {  // first round = warm-up
     for (const auto& s : rooms) {
@@ -626,8 +626,9 @@ void RunBench(const BenchArgs& a) {
       const auto t2 = Clock::now();
       if (rep == 0) continue;
       vox.push_back(t.voxelize_ms);
+      kmap.push_back(t.kernel_map_ms);
       unet.push_back(t.unet_ms);
-      heads.push_back(Seconds(t0, t1) * 1e3 - t.voxelize_ms - t.unet_ms);
+      heads.push_back(Seconds(t0, t1) * 1e3 - t.voxelize_ms - t.kernel_map_ms - t.unet_ms);
       clus.push_back(Seconds(t1, t2) * 1e3);
       total.push_back(Seconds(t0, t2) * 1e3);
       npts.push_back(static_cast<long long>(s.points.size()));
@@ -642,7 +643,8 @@ void RunBench(const BenchArgs& a) {
                 *std::min_element(v.begin(), v.end()), *std::max_element(v.begin(), v.end()));
   };
   row("voxelise", vox);
-  row("U-Net", unet);
+  row("kernel maps (rulebooks)", kmap);
+  row("U-Net convolutions", unet);
   row("heads (+ batch build, softmax, copy-out)", heads);
   row("clustering (4 passes) + NMS", clus);
   row("total", total);
@@ -655,6 +657,7 @@ void RunBench(const BenchArgs& a) {
     j["points_per_room"] = a.points;
     j["threads"] = a.threads;
     j["median_ms"] = {{"voxelize", Median(vox)},
+                      {"kernel_maps", Median(kmap)},
                       {"unet", Median(unet)},
                       {"heads", Median(heads)},
                       {"clustering", Median(clus)},

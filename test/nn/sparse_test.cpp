@@ -312,6 +312,34 @@ TEST(SparseConv, FiniteDifferenceGradients) {
   }
 }
 
+// Prebuilt kernel maps are the ones a lazy forward builds: same levels, same pairs.
+TEST(SparseContext, BuildKernelMapsEqualsLazyBuild) {
+  const at::Tensor coords = RandomSites(2, {21, 17, 19}, 900, 33);
+  SparseContext eager(coords, {21, 17, 19}, 2), lazy(coords, {21, 17, 19}, 2);
+  eager.BuildKernelMaps(4);
+  EXPECT_TRUE(eager.has_level(8));
+  EXPECT_FALSE(eager.has_level(16));  // no Down below the last level
+  int64_t stride = 1;
+  for (int l = 0; l < 4; ++l, stride *= 2) {
+    const Rulebook& a = eager.Subm3(stride);
+    const Rulebook& b = lazy.Subm3(stride);
+    EXPECT_EQ(a.offsets, b.offsets) << "stride " << stride;
+    EXPECT_TRUE(at::equal(a.in_idx, b.in_idx)) << "stride " << stride;
+    EXPECT_TRUE(at::equal(a.out_idx, b.out_idx)) << "stride " << stride;
+    EXPECT_GT(a.num_pairs(), a.num_in);  // neighbours beyond the centre tap
+    if (l < 3) {
+      const Rulebook& da = eager.Down(stride);
+      const Rulebook& db = lazy.Down(stride);
+      EXPECT_EQ(da.num_out, db.num_out);
+      EXPECT_TRUE(at::equal(da.in_idx, db.in_idx) && at::equal(da.out_idx, db.out_idx));
+    }
+  }
+  EXPECT_EQ(eager.level(8).shape, (Shape3{2, 2, 2}));  // 21 -> 10 -> 5 -> 2 (odd borders dropped)
+  EXPECT_THROW(eager.BuildKernelMaps(0), InvalidArgument);
+  // 6 levels would halve a 1-voxel axis (17 -> 8 -> 4 -> 2 -> 1 -> 0): a clear error.
+  EXPECT_THROW(eager.BuildKernelMaps(6), InvalidArgument);
+}
+
 TEST(SparseConv, EmptyTensor) {
   at::Tensor coords = at::zeros({0, 4}, at::kInt);
   SparseTensor s(coords, at::zeros({0, 3}), {4, 4, 4}, 1);

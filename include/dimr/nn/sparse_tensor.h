@@ -80,6 +80,10 @@ class SparseContext {
   // r = v - 2*floor(v/2)); creates the coarse level. Fine sites whose coarse index reaches
   // floor(S/2) on some axis are dropped.
   const Rulebook& Down(int64_t stride);
+  // Builds every rulebook a U-Net of `levels` levels uses (Subm3 at strides 1, 2, ...,
+  // 2^(levels-1) and Down between them) now, so that its forward pass finds them cached: callers
+  // time or schedule the kernel maps apart from the convolutions. levels >= 1.
+  void BuildKernelMaps(int levels);
 
  private:
   Level& MutableLevel(int64_t stride);

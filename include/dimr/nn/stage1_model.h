@@ -66,11 +66,13 @@ struct Stage1StepLog {
   double lr = 0;
   Stage1LossTerms loss;
   double seconds = 0;  // wall time since the start (this process)
-  // Where the step's time went (ms): waiting for the loader, voxelisation, U-Net forward
-  // (rulebooks included), heads + loss, backward, optimiser. On CUDA the device is synchronised
+  // Where the step's time went (ms): waiting for the loader, voxelisation, kernel maps (the
+  // U-Net's rulebooks, built on the CPU), U-Net forward (convolutions), heads + loss, backward,
+  // optimiser. On CUDA the device is synchronised
   // after backward and after the optimiser step so that the phases are not blurred by queued
   // kernels (the loss already synchronises).
-  double data_ms = 0, voxelize_ms = 0, unet_ms = 0, loss_ms = 0, backward_ms = 0, optimizer_ms = 0;
+  double data_ms = 0, voxelize_ms = 0, kernel_map_ms = 0, unet_ms = 0, loss_ms = 0,
+         backward_ms = 0, optimizer_ms = 0;
 };
 
 // Per-point results of one scene (in the input point order).
@@ -85,7 +87,7 @@ struct Stage1Output {
 };
 
 struct Stage1Timing {
-  double voxelize_ms = 0, unet_ms = 0, heads_ms = 0;
+  double voxelize_ms = 0, kernel_map_ms = 0, unet_ms = 0, heads_ms = 0;  // unet: convolutions only
 };
 
 // Class weights w_c = clamp((median_f / f_c)^power, min_w, max_w) (power 0.5: sqrt) from the
