@@ -95,7 +95,8 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
       RunCli("bench stage1 --model " + model + "/stage1.pt --rooms 1 --points 5000 " +
              "--repeats 1 --json " + d + "/bench.json");
   ASSERT_EQ(rc, 0) << out;
-  EXPECT_NE(out.find("| U-Net |"), std::string::npos) << out;
+  EXPECT_NE(out.find("| U-Net convolutions |"), std::string::npos) << out;
+  EXPECT_NE(out.find("| kernel maps (rulebooks) |"), std::string::npos) << out;
   const nlohmann::json b = nlohmann::json::parse(ReadText(d + "/bench.json"));
   EXPECT_EQ(b["points_per_room"].get<int>(), 5000);
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
