@@ -109,8 +109,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
                             model.config().ToString() + "', not the --config '" +
                             config.ToString() + "'");
     }
-    std::printf("initialised from %s (trained through phase %d)\n", a.init.c_str(),
-                model.phase());
+    std::printf("initialised from %s (trained through phase %d)\n", a.init.c_str(), model.phase());
     if (model.phase() > 0 && opt.epochs_phase0 > 0) {
       std::printf("note: --init is a phase-%d model; --epochs starts with %d continuous epochs\n",
                   model.phase(), opt.epochs_phase0);

@@ -101,8 +101,8 @@ void RunPrepare(const PrepareArgs& a) {
       }
     }
   };
-  const int jobs = a.jobs > 0 ? a.jobs
-                              : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  const int jobs =
+      a.jobs > 0 ? a.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
   std::vector<std::thread> pool;
   for (int j = 1; j < std::min<int>(jobs, static_cast<int>(total)); ++j) pool.emplace_back(worker);
   worker();
@@ -125,7 +125,8 @@ void SetupPrepare(CLI::App& app) {
   app.add_option("--classes", a->classes, "'all' or a comma list of class names");
   app.add_option("--resolution", a->resolution, "encoder grid resolution")
       ->check(CLI::IsMember({8, 16, 32, 64, 128}));
-  app.add_option("--jobs", a->jobs, "worker threads (0 = all cores); the output does not depend on it")
+  app.add_option("--jobs", a->jobs,
+                 "worker threads (0 = all cores); the output does not depend on it")
       ->check(CLI::Range(0, 1024));
   app.callback([a]() { RunPrepare(*a); });
 }

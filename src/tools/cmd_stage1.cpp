@@ -419,8 +419,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         csv << s.step << "," << s.epoch << "," << s.lr << "," << s.loss.total << ","
             << s.loss.semantic << "," << s.loss.offset_norm << "," << s.loss.offset_dir << ","
             << s.loss.heading_cls << "," << s.loss.heading_res << "," << s.seconds << ","
-            << s.data_ms << "," << s.voxelize_ms << "," << s.kernel_map_ms << "," << s.unet_ms << "," << s.loss_ms << ","
-            << s.backward_ms << "," << s.optimizer_ms << "\n";
+            << s.data_ms << "," << s.voxelize_ms << "," << s.kernel_map_ms << "," << s.unet_ms
+            << "," << s.loss_ms << "," << s.backward_ms << "," << s.optimizer_ms << "\n";
         if (s.step % 20 == 0) csv.flush();
       },
       on_epoch);
@@ -656,12 +656,9 @@ void RunBench(const BenchArgs& a) {
     j["repeats"] = a.repeats;
     j["points_per_room"] = a.points;
     j["threads"] = a.threads;
-    j["median_ms"] = {{"voxelize", Median(vox)},
-                      {"kernel_maps", Median(kmap)},
-                      {"unet", Median(unet)},
-                      {"heads", Median(heads)},
-                      {"clustering", Median(clus)},
-                      {"total", Median(total)}};
+    j["median_ms"] = {{"voxelize", Median(vox)},    {"kernel_maps", Median(kmap)},
+                      {"unet", Median(unet)},       {"heads", Median(heads)},
+                      {"clustering", Median(clus)}, {"total", Median(total)}};
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
     f << j.dump(2) << "\n";

@@ -118,7 +118,8 @@ TEST(BspCli, TrainInitContinuesAModel) {
   EXPECT_NE(again.find(" --fp32"), std::string::npos) << again;
   EXPECT_EQ(again.find("--fp32 true"), std::string::npos) << again;
   // The recorded line runs as written (into another folder).
-  std::tie(rc, out) = RunCli(std::regex_replace(again, std::regex("--out \\S+"), "--out " + d + "/again"));
+  std::tie(rc, out) =
+      RunCli(std::regex_replace(again, std::regex("--out \\S+"), "--out " + d + "/again"));
   EXPECT_EQ(rc, 0) << again << "\n" << out;
   // The trained weights load and decode.
   std::tie(rc, out) = RunCli("bsp eval --model " + d + "/run/bsp.pt --data " + d + "/data.bin");

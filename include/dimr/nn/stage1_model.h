@@ -71,8 +71,8 @@ struct Stage1StepLog {
   // optimiser. On CUDA the device is synchronised
   // after backward and after the optimiser step so that the phases are not blurred by queued
   // kernels (the loss already synchronises).
-  double data_ms = 0, voxelize_ms = 0, kernel_map_ms = 0, unet_ms = 0, loss_ms = 0,
-         backward_ms = 0, optimizer_ms = 0;
+  double data_ms = 0, voxelize_ms = 0, kernel_map_ms = 0, unet_ms = 0, loss_ms = 0, backward_ms = 0,
+         optimizer_ms = 0;
 };
 
 // Per-point results of one scene (in the input point order).
