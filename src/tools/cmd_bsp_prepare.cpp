@@ -1,20 +1,18 @@
 // `dimr bsp prepare`: BSP-CVAE training sets from the procedural CAD library.
 #include <Eigen/Core>
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <memory>
-#include <mutex>
 #include <sstream>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include "dimr/data/cad_library.h"
 #include "dimr/data/labels.h"
 #include "dimr/eval/mesh_metrics.h"
+#include "dimr/eval/parallel.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/bsp_dataset.h"
 #include "dimr/nn/bsp_model.h"
@@ -72,43 +70,26 @@ void RunPrepare(const PrepareArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t total = classes.size() * static_cast<std::size_t>(a.per_class);
   // Each shape depends only on its (seed, class, index), so the output is the same for any
-  // number of jobs: workers take the next index and write into its own slot.
+  // number of jobs: every item writes its own slot.
   data.samples.resize(total);
-  std::atomic<std::size_t> next{0}, done{0};
-  std::mutex error_mutex;
-  std::string error;
-  auto worker = [&]() {
-    for (std::size_t k = next++; k < total; k = next++) {
-      const int c = classes[k / static_cast<std::size_t>(a.per_class)];
-      const int i = static_cast<int>(k % static_cast<std::size_t>(a.per_class));
-      try {
-        const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
-        const data::CadModel m = data::GenerateCadModel(c, model_seed);
-        data.samples[k] =
-            pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, model_seed ^ 0x9e3779b97f4a7c15ull);
-      } catch (const std::exception& e) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        if (error.empty()) {
-          error = "shape " + std::to_string(i) + " of class " + data::CadClassNames()[c] + ": " +
-                  e.what();
+  eval::Progress progress("bsp prepare", total, true);
+  eval::ParallelFor(
+      total, a.jobs,
+      [&](std::size_t k) {
+        const int c = classes[k / static_cast<std::size_t>(a.per_class)];
+        const int i = static_cast<int>(k % static_cast<std::size_t>(a.per_class));
+        try {
+          const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
+          const data::CadModel m = data::GenerateCadModel(c, model_seed);
+          data.samples[k] = pipeline::MakeBspSample(m.mesh, c, m.model_id, opt,
+                                                    model_seed ^ 0x9e3779b97f4a7c15ull);
+        } catch (const std::exception& e) {
+          throw InvalidArgument("bsp prepare: shape " + std::to_string(i) + " of class " +
+                                data::CadClassNames()[c] + ": " + e.what());
         }
-        next = total;
-      }
-      const std::size_t d = ++done;
-      if (a.jobs == 1 || d % 16 == 0 || d == total) {
-        std::lock_guard<std::mutex> lock(error_mutex);
-        std::fprintf(stderr, "\rprepare: %zu/%zu shapes", d, total);
-      }
-    }
-  };
-  const int jobs =
-      a.jobs > 0 ? a.jobs : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
-  std::vector<std::thread> pool;
-  for (int j = 1; j < std::min<int>(jobs, static_cast<int>(total)); ++j) pool.emplace_back(worker);
-  worker();
-  for (auto& t : pool) t.join();
-  if (!error.empty()) throw InvalidArgument("bsp prepare: " + error);
-  std::fprintf(stderr, "\n");
+      },
+      &progress);
+  progress.Finish();
   data.Save(a.out);
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("wrote %zu samples (R=%d) to %s in %.1f s\n", data.samples.size(), a.resolution,

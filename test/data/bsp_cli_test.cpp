@@ -2,11 +2,9 @@
 // from the model card beside the weights (recommended_dilation), else 0; a malformed card is a
 // clear error naming it.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <regex>
 #include <sstream>
 #include <string>
@@ -18,6 +16,8 @@ namespace {
 namespace fs = std::filesystem;
 
 #ifdef DIMR_CLI
+using dimr::testing::FreshTempDir;
+using dimr::testing::ReadFileText;
 using dimr::testing::RunCli;
 
 double AllIoU(const std::string& out) {
@@ -30,9 +30,7 @@ double AllIoU(const std::string& out) {
 
 TEST(BspCli, DilationFromOptionOrModelCard) {
   if (RunCli("bsp eval --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
-  const fs::path dir = fs::temp_directory_path() / ("bsp_cli_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = FreshTempDir("bsp_cli");
   const std::string d = dir.string();
   fs::copy_file(fs::path(DIMR_SOURCE_DIR) / "models/bsp/bsp.pt", dir / "bsp.pt");
   auto [rc, out] = RunCli("bsp prepare --per-class 1 --seed 5 --out " + d + "/data.bin");
@@ -69,23 +67,16 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   fs::remove_all(dir);
 }
 
-std::string ReadAll(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
 // `bsp prepare --jobs`: the same bytes for any number of worker threads.
 TEST(BspCli, PrepareIsIndependentOfJobs) {
   if (RunCli("bsp prepare --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
-  const fs::path dir = fs::temp_directory_path() / ("bsp_jobs_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = FreshTempDir("bsp_jobs");
   const std::string d = dir.string();
   auto [rc, out] = RunCli("bsp prepare --per-class 2 --seed 9 --jobs 1 --out " + d + "/a.bin");
   ASSERT_EQ(rc, 0) << out;
   std::tie(rc, out) = RunCli("bsp prepare --per-class 2 --seed 9 --jobs 3 --out " + d + "/b.bin");
   ASSERT_EQ(rc, 0) << out;
-  const std::string a = ReadAll(dir / "a.bin"), b = ReadAll(dir / "b.bin");
+  const std::string a = ReadFileText(dir / "a.bin"), b = ReadFileText(dir / "b.bin");
   EXPECT_GT(a.size(), 16u * 1000u);  // 16 shapes of a 32^3 grid and query points
   EXPECT_TRUE(a == b) << "outputs differ with the job count";
   fs::remove_all(dir);
@@ -95,9 +86,7 @@ TEST(BspCli, PrepareIsIndependentOfJobs) {
 // the start and records a command line that runs again as written (flags without values).
 TEST(BspCli, TrainInitContinuesAModel) {
   if (RunCli("train bsp --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
-  const fs::path dir = fs::temp_directory_path() / ("bsp_init_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = FreshTempDir("bsp_init");
   const std::string d = dir.string();
   const std::string init = (fs::path(DIMR_SOURCE_DIR) / "models/bsp/bsp.pt").string();
   auto [rc, out] = RunCli("bsp prepare --per-class 1 --seed 5 --jobs 2 --out " + d + "/data.bin");
@@ -108,7 +97,7 @@ TEST(BspCli, TrainInitContinuesAModel) {
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("initialised from"), std::string::npos) << out;
   EXPECT_NE(out.find("phase 1"), std::string::npos) << out;  // no continuous epoch ran
-  const std::string card = ReadAll(dir / "run/model.yaml");
+  const std::string card = ReadFileText(dir / "run/model.yaml");
   EXPECT_NE(card.find("initialised_from: \"" + init + "\""), std::string::npos) << card;
   EXPECT_NE(card.find("phase: 1"), std::string::npos) << card;
   EXPECT_NE(card.find("dtype: float32"), std::string::npos) << card;

@@ -2,7 +2,6 @@
 // prepare` -> `dimr train stage1` (tiny network, a few steps) -> `dimr stage1 eval` (JSON,
 // PNG) -> `dimr bench stage1`; a corrupt model file gives a clear error.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <cstdio>
 #include <filesystem>
@@ -18,12 +17,9 @@ namespace {
 namespace fs = std::filesystem;
 
 #ifdef DIMR_CLI
+using dimr::testing::FreshTempDir;
+using dimr::testing::ReadFileText;
 using dimr::testing::RunCli;
-
-std::string ReadText(const fs::path& p) {
-  std::ifstream in(p, std::ios::binary);
-  return std::string((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-}
 
 int CountLines(const fs::path& p) {
   std::ifstream in(p);
@@ -35,9 +31,7 @@ int CountLines(const fs::path& p) {
 
 TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   if (RunCli("train stage1 --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
-  const fs::path dir = fs::temp_directory_path() / ("stage1_cli_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
+  const fs::path dir = FreshTempDir("stage1_cli");
   const std::string d = dir.string();
 
   auto [rc, out] = RunCli(
@@ -60,7 +54,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   ASSERT_TRUE(fs::exists(model + "/stage1.pt"));
   EXPECT_EQ(CountLines(model + "/train_log.csv"), 1 + 4);  // header + 2 epochs x 2 scenes
   EXPECT_GE(CountLines(model + "/val_log.csv"), 2);        // header + at least one epoch
-  const std::string card = ReadText(model + "/model.yaml");
+  const std::string card = ReadFileText(model + "/model.yaml");
   EXPECT_TRUE(std::regex_search(card, std::regex("sha256: [0-9a-f]{64}\n"))) << card;
   EXPECT_NE(card.find("architecture: \"scale=10 rgb=0 widths=8,16 reps=1 classes=25\""),
             std::string::npos)
@@ -75,7 +69,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
       RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin --json " + d +
              "/eval.json --render 1 --render-dir " + d + "/png");
   ASSERT_EQ(rc, 0) << out;
-  const nlohmann::json j = nlohmann::json::parse(ReadText(d + "/eval.json"));
+  const nlohmann::json j = nlohmann::json::parse(ReadFileText(d + "/eval.json"));
   EXPECT_EQ(j["scenes"].get<int>(), 2);
   EXPECT_EQ(j["points"].get<long long>(), points);
   EXPECT_GE(j["miou_present"].get<double>(), 0.0);
@@ -85,7 +79,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_TRUE(j["instance"].contains("chair"));
   int pngs = 0;
   for (const auto& e : fs::directory_iterator(d + "/png")) {
-    EXPECT_EQ(ReadText(e.path()).substr(1, 3), "PNG");
+    EXPECT_EQ(ReadFileText(e.path()).substr(1, 3), "PNG");
     ++pngs;
   }
   EXPECT_EQ(pngs, 1);
@@ -97,7 +91,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("| U-Net convolutions |"), std::string::npos) << out;
   EXPECT_NE(out.find("| kernel maps (rulebooks) |"), std::string::npos) << out;
-  const nlohmann::json b = nlohmann::json::parse(ReadText(d + "/bench.json"));
+  const nlohmann::json b = nlohmann::json::parse(ReadFileText(d + "/bench.json"));
   EXPECT_EQ(b["points_per_room"].get<int>(), 5000);
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
@@ -111,7 +105,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
              "--batch 1 --threads 1 --quiet --seed 3 --max-minutes 5 --lr-by-time");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("initialised from"), std::string::npos) << out;
-  const std::string tuned_card = ReadText(d + "/tuned/model.yaml");
+  const std::string tuned_card = ReadFileText(d + "/tuned/model.yaml");
   EXPECT_NE(tuned_card.find("initialised_from: \"" + model + "/stage1.pt\""), std::string::npos)
       << tuned_card;
   EXPECT_NE(tuned_card.find("lr_schedule: by time"), std::string::npos) << tuned_card;
