@@ -443,6 +443,78 @@ Stage1Output Stage1Model::Predict(const Stage1Sample& sample, bool with_features
   return out;
 }
 
+Stage1Output Stage1Model::PredictAugmented(const Stage1Sample& sample, int rotations, bool mirror,
+                                           bool with_features, Stage1Timing* timing) const {
+  if (rotations < 1 || kHeadingBins % rotations != 0) {
+    throw InvalidArgument("stage1 predict: rotations must divide " + std::to_string(kHeadingBins) +
+                          " (1, 2, 3, 4, 6, 12), got " + std::to_string(rotations));
+  }
+  Stage1Output out = Predict(sample, with_features, timing);
+  if (rotations == 1 && !mirror) return out;
+  const std::size_t n = sample.points.size();
+  const int nc = impl_->config.num_classes;
+  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+  for (const auto& p : sample.points) centre += p.head<2>().cast<double>();
+  centre /= static_cast<double>(n);
+  Stage1Sample moved;
+  moved.name = sample.name;
+  moved.colors = sample.colors;
+  moved.points.resize(n);
+  int passes = 1;
+  for (int m = 0; m < (mirror ? 2 : 1); ++m) {
+    const double sign = m == 1 ? -1.0 : 1.0;  // x -> sign * x before the rotation
+    for (int k = 0; k < rotations; ++k) {
+      if (k == 0 && m == 0) continue;  // the plain pass above
+      const double theta = 2.0 * M_PI * k / rotations;
+      const double c = std::cos(theta), s = std::sin(theta);
+      for (std::size_t i = 0; i < n; ++i) {
+        const double x = sign * (sample.points[i].x() - centre.x());
+        const double y = sample.points[i].y() - centre.y();
+        moved.points[i] =
+            Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
+                            static_cast<float>(centre.y() + s * x + c * y), sample.points[i].z());
+      }
+      Stage1Timing t;
+      const Stage1Output r = Predict(moved, false, timing ? &t : nullptr);
+      ++passes;
+      if (timing) {
+        timing->voxelize_ms += t.voxelize_ms;
+        timing->kernel_map_ms += t.kernel_map_ms;
+        timing->unet_ms += t.unet_ms;
+        timing->heads_ms += t.heads_ms;
+      }
+      // A heading h of the input is sign * h (+ pi if mirrored) + theta in the moved scene:
+      // bin b here is bin (m * 6 + sign * b + shift) there, residual times sign.
+      const int shift = kHeadingBins * k / rotations;
+      for (std::size_t i = 0; i < n; ++i) {
+        for (int j = 0; j < nc; ++j) out.semantic_prob[i * nc + j] += r.semantic_prob[i * nc + j];
+        const Eigen::Vector3f& o = r.offsets[i];
+        out.offsets[i] += Eigen::Vector3f(static_cast<float>(sign * (c * o.x() + s * o.y())),
+                                          static_cast<float>(-s * o.x() + c * o.y()), o.z());
+        for (int b = 0; b < kHeadingBins; ++b) {
+          const int to =
+              ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
+              kHeadingBins;
+          const std::size_t from = i * kHeadingBins + static_cast<std::size_t>(to);
+          out.heading_prob[i * kHeadingBins + b] += r.heading_prob[from];
+          out.heading_residual[i * kHeadingBins + b] +=
+              static_cast<float>(sign) * r.heading_residual[from];
+        }
+      }
+    }
+  }
+  const float inv = 1.0f / static_cast<float>(passes);
+  for (auto& v : out.semantic_prob) v *= inv;
+  for (auto& v : out.heading_prob) v *= inv;
+  for (auto& v : out.heading_residual) v *= inv;
+  for (auto& o : out.offsets) o *= inv;
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* row = out.semantic_prob.data() + i * nc;
+    out.semantic[i] = static_cast<int>(std::max_element(row, row + nc) - row);
+  }
+  return out;
+}
+
 // ---------------------------------------------------------------------------------------
 // Training
 // ---------------------------------------------------------------------------------------

@@ -1,5 +1,6 @@
 #include "dimr/pipeline/stage1_instances.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <utility>
@@ -23,6 +24,7 @@ void CheckSize(const char* name, std::size_t got, std::size_t want) {
 
 void Stage1InstanceConfig::Validate() const {
   clustering.Validate();
+  semantic_vote.Validate();
   if (!(nms_iou >= 0.0 && nms_iou <= 1.0)) {
     throw InvalidArgument("Stage1InstanceConfig.nms_iou: must be in [0, 1], got " +
                           std::to_string(nms_iou));
@@ -85,6 +87,71 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     instances.push_back(std::move(inst));
   }
   return instances;
+}
+
+void SemanticVoteConfig::Validate() const {
+  if (!(std::isfinite(radius) && radius >= 0.0)) {
+    throw InvalidArgument("SemanticVoteConfig.radius: must be finite and >= 0, got " +
+                          std::to_string(radius));
+  }
+  if (min_points < 1) {
+    throw InvalidArgument("SemanticVoteConfig.min_points: must be >= 1, got " +
+                          std::to_string(min_points));
+  }
+}
+
+std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
+                               const std::vector<Eigen::Vector3f>& offsets,
+                               const std::vector<int>& semantic,
+                               const std::vector<float>& semantic_prob,
+                               const std::vector<bool>& is_thing,
+                               const SemanticVoteConfig& config) {
+  config.Validate();
+  const std::size_t n = points.size();
+  const std::size_t num_classes = is_thing.size();
+  if (num_classes == 0) throw InvalidArgument("VoteSemantics: is_thing is empty");
+  auto check = [](const char* name, std::size_t got, std::size_t want) {
+    if (got != want) {
+      throw InvalidArgument(std::string("VoteSemantics: ") + name + " has " + std::to_string(got) +
+                            " values, expected " + std::to_string(want));
+    }
+  };
+  check("offsets", offsets.size(), n);
+  check("semantic", semantic.size(), n);
+  check("semantic_prob", semantic_prob.size(), n * num_classes);
+  std::vector<int> thing_label(n, -1);
+  std::vector<Eigen::Vector3f> shifted(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int c = semantic[i];
+    if (c < 0 || static_cast<std::size_t>(c) >= num_classes) {
+      throw InvalidArgument("VoteSemantics: semantic[" + std::to_string(i) +
+                            "] = " + std::to_string(c) + " is not in [0, " +
+                            std::to_string(num_classes) + ")");
+    }
+    shifted[i] = points[i] + offsets[i];
+    if (is_thing[c]) thing_label[i] = 0;
+  }
+  std::vector<int> out = semantic;
+  if (config.radius == 0.0) return out;
+  const std::vector<std::vector<int>> clusters =
+      BfsClusters(shifted, thing_label, config.radius, config.min_points);
+  std::vector<double> sum(num_classes);
+  for (const auto& cluster : clusters) {
+    std::fill(sum.begin(), sum.end(), 0.0);
+    for (int i : cluster) {
+      const float* row = semantic_prob.data() + static_cast<std::size_t>(i) * num_classes;
+      for (std::size_t c = 0; c < num_classes; ++c) {
+        if (!std::isfinite(row[c])) {
+          throw InvalidArgument("VoteSemantics: semantic_prob of point " + std::to_string(i) +
+                                " is not finite");
+        }
+        if (is_thing[c]) sum[c] += row[c];
+      }
+    }
+    const int best = static_cast<int>(std::max_element(sum.begin(), sum.end()) - sum.begin());
+    for (int i : cluster) out[i] = best;
+  }
+  return out;
 }
 
 }  // namespace dimr::pipeline

@@ -2,38 +2,28 @@
 
 #include <CLI/CLI.hpp>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
+#include <optional>
+#include <stdexcept>
 
 #include "dimr/geometry/error.h"
+#include "tools/model_card.h"
 
 namespace dimr::tools {
 
 float ResolveBspDilation(const std::string& model_path, float requested) {
   if (requested >= 0.0f) return requested;
-  const std::filesystem::path card = std::filesystem::path(model_path).parent_path() / "model.yaml";
-  std::ifstream in(card);
-  if (!in) return 0.0f;
-  const std::string key = "recommended_dilation:";
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.compare(0, key.size(), key) != 0) continue;
-    std::string value = line.substr(key.size());
-    value = value.substr(0, value.find('#'));
-    try {
-      std::size_t used = 0;
-      const float d = std::stof(value, &used);
-      if (!std::isfinite(d) || d < 0.0f) throw std::invalid_argument("negative");
-      if (value.find_first_not_of(" \t\r", used) != std::string::npos) {
-        throw std::invalid_argument("trailing text");
-      }
-      return d;
-    } catch (const std::exception&) {
-      throw ParseError(card.string(),
-                       "recommended_dilation must be a number >= 0, got '" + value + "'");
-    }
+  const std::optional<std::string> value = ReadModelCardValue(model_path, "recommended_dilation");
+  if (!value) return 0.0f;
+  try {
+    std::size_t used = 0;
+    const float d = std::stof(*value, &used);
+    if (!std::isfinite(d) || d < 0.0f) throw std::invalid_argument("negative");
+    if (used != value->size()) throw std::invalid_argument("trailing text");
+    return d;
+  } catch (const std::exception&) {
+    throw ParseError(ModelCardPath(model_path),
+                     "recommended_dilation must be a number >= 0, got '" + *value + "'");
   }
-  return 0.0f;
 }
 
 void AddBspDilationOption(CLI::App& app, float* dilation) {

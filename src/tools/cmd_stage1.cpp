@@ -22,6 +22,7 @@
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/stage1_instances.h"
 #include "tools/command_registry.h"
+#include "tools/model_card.h"
 #include "tools/render.h"
 #include "tools/sha256.h"
 #include "tools/stage1_scenes.h"
@@ -71,12 +72,22 @@ std::vector<int> RfsToCadTable() {
   return t;
 }
 
+// Every RFS class but wall and floor takes part in the instance-guided semantic vote.
+std::vector<bool> ThingClasses() {
+  std::vector<bool> t(data::kNumRfsClasses, true);
+  t[data::kWall] = t[data::kFloor] = false;
+  return t;
+}
+
 // ---------------------------------------------------------------- evaluation
 struct Stage1Eval {
   eval::SemanticIouResult semantic;
   eval::InstanceApResult instances;
   double miou_present = 0;  // mean IoU over the classes with ground-truth points
   int classes_present = 0;
+  // Per GT class: the most frequent wrong prediction and its share of the class's points.
+  std::vector<int> confused_with;
+  std::vector<double> confused_share;
   int scenes = 0;
   long long points = 0;
   double network_s = 0, cluster_s = 0;
@@ -85,16 +96,22 @@ struct Stage1Eval {
 };
 
 Stage1Eval EvaluateStage1(const nn::Stage1Model& model, const std::vector<nn::Stage1Sample>& scenes,
-                          const pipeline::Stage1InstanceConfig& cfg, bool keep_predictions) {
+                          const pipeline::Stage1InstanceConfig& cfg, bool keep_predictions,
+                          int rotations = 1, bool mirror = false) {
   Stage1Eval r;
   const std::vector<int> rfs_to_cad = RfsToCadTable();
+  const std::vector<bool> is_thing = ThingClasses();
   std::vector<int> gt_sem, pred_sem;
   std::vector<eval::InstanceScene> inst_scenes;
   std::vector<double> heading_errors;
   for (const auto& s : scenes) {
     const auto t0 = Clock::now();
-    const nn::Stage1Output out = model.Predict(s);
+    nn::Stage1Output out = model.PredictAugmented(s, rotations, mirror);
     const auto t1 = Clock::now();
+    if (cfg.semantic_vote.radius > 0) {
+      out.semantic = pipeline::VoteSemantics(s.points, out.offsets, out.semantic, out.semantic_prob,
+                                             is_thing, cfg.semantic_vote);
+    }
     std::vector<int> cad(out.semantic.size());
     for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
     auto inst =
@@ -146,6 +163,28 @@ Stage1Eval EvaluateStage1(const nn::Stage1Model& model, const std::vector<nn::St
     }
   }
   r.miou_present = r.classes_present ? sum / r.classes_present : 0;
+  {
+    const int nc = nn::kStage1Classes;
+    std::vector<long long> confusion(static_cast<std::size_t>(nc) * nc, 0);
+    for (std::size_t i = 0; i < gt_sem.size(); ++i) {
+      const int g = gt_sem[i], p = pred_sem[i];
+      if (g >= 0 && g < nc && p >= 0 && p < nc) ++confusion[static_cast<std::size_t>(g) * nc + p];
+    }
+    r.confused_with.assign(nc, -1);
+    r.confused_share.assign(nc, 0.0);
+    for (int g = 0; g < nc; ++g) {
+      long long total = 0, best = 0;
+      for (int p = 0; p < nc; ++p) {
+        const long long v = confusion[static_cast<std::size_t>(g) * nc + p];
+        total += v;
+        if (p != g && v > best) {
+          best = v;
+          r.confused_with[g] = p;
+        }
+      }
+      if (total > 0) r.confused_share[g] = static_cast<double>(best) / static_cast<double>(total);
+    }
+  }
   r.instances = eval::InstanceAp(inst_scenes, data::kNumCadClasses);
   if (!heading_errors.empty()) {
     std::nth_element(heading_errors.begin(), heading_errors.begin() + heading_errors.size() / 2,
@@ -165,12 +204,19 @@ std::string Fmt(double v) {
 void PrintEval(const Stage1Eval& r) {
   std::printf("%d scenes, %lld points; network %.1f s, clustering %.1f s\n", r.scenes, r.points,
               r.network_s, r.cluster_s);
-  std::printf("\n| RFS class | IoU | GT points |\n|---|---|---|\n");
+  std::printf("\n| RFS class | IoU | GT points | most often taken for |\n|---|---|---|---|\n");
   const auto& names = data::RfsClassNames();
   for (int c = 0; c < nn::kStage1Classes; ++c) {
     if (r.semantic.tp[c] + r.semantic.fn[c] + r.semantic.fp[c] == 0) continue;
-    std::printf("| %s | %s | %lld |\n", names[c], Fmt(r.semantic.iou[c]).c_str(),
-                r.semantic.tp[c] + r.semantic.fn[c]);
+    std::string confused = "-";
+    if (r.confused_with[c] >= 0) {
+      char b[64];
+      std::snprintf(b, sizeof(b), "%s (%.0f%%)", names[r.confused_with[c]],
+                    100.0 * r.confused_share[c]);
+      confused = b;
+    }
+    std::printf("| %s | %s | %lld | %s |\n", names[c], Fmt(r.semantic.iou[c]).c_str(),
+                r.semantic.tp[c] + r.semantic.fn[c], confused.c_str());
   }
   std::printf(
       "\nsemantic mIoU over the %d classes present: %.4f (all predicted/present: %.4f), "
@@ -504,30 +550,116 @@ std::vector<pipeline::ClusterPass> ParsePasses(const std::string& text) {
   return passes;
 }
 
+// Inference settings of `dimr stage1 eval`: clustering passes, test-time augmentation and the
+// instance-guided semantic vote. A model card may recommend them in one line,
+//   recommended_inference: "passes=s0.12,s0.2,s0.3 rotations=6 mirror=1 vote_radius=0.05"
+// (keys optional; vote_min_points too); flags given on the command line override it.
+struct Stage1Inference {
+  std::string passes;  // empty = the reference's o0.03,s0.01,s0.03,s0.05
+  int rotations = 1;
+  bool mirror = false;
+  double vote_radius = 0;
+  int vote_min_points = 20;
+
+  std::string ToString() const {
+    std::ostringstream o;
+    if (!passes.empty()) o << "passes=" << passes << " ";
+    o << "rotations=" << rotations << " mirror=" << (mirror ? 1 : 0)
+      << " vote_radius=" << vote_radius << " vote_min_points=" << vote_min_points;
+    return o.str();
+  }
+};
+
+// Throws dimr::ParseError naming `where` for an unknown key or a bad value.
+Stage1Inference ParseStage1Inference(const std::string& text, const std::string& where) {
+  Stage1Inference r;
+  std::istringstream in(text);
+  std::string item;
+  while (in >> item) {
+    const std::size_t eq = item.find('=');
+    const std::string key = item.substr(0, eq);
+    const std::string value = eq == std::string::npos ? "" : item.substr(eq + 1);
+    auto bad = [&](const std::string& why) {
+      return ParseError(where, "recommended_inference: '" + item + "': " + why);
+    };
+    try {
+      std::size_t used = 0;
+      if (key == "passes") {
+        try {
+          ParsePasses(value);  // validates
+        } catch (const InvalidArgument& e) {
+          throw bad(e.what());
+        }
+        r.passes = value;
+        continue;
+      } else if (key == "rotations") {
+        r.rotations = std::stoi(value, &used);
+      } else if (key == "mirror") {
+        if (value != "0" && value != "1") throw bad("expected 0 or 1");
+        r.mirror = value == "1";
+        continue;
+      } else if (key == "vote_radius") {
+        r.vote_radius = std::stod(value, &used);
+      } else if (key == "vote_min_points") {
+        r.vote_min_points = std::stoi(value, &used);
+      } else {
+        throw bad("unknown key (passes, rotations, mirror, vote_radius, vote_min_points)");
+      }
+      if (used != value.size()) throw bad("trailing text");
+    } catch (const ParseError&) {
+      throw;
+    } catch (const std::exception&) {
+      throw bad("not a number");
+    }
+  }
+  return r;
+}
+
 struct EvalArgs {
-  std::string model = "models/stage1/stage1.pt", scans, json, render_dir, scene_list, passes;
+  std::string model = "models/stage1/stage1.pt", scans, json, render_dir, scene_list;
   int limit = 0, render = 0, threads = 2;
   double nms = 0.3;
   int min_points = 100;
+  Stage1Inference flags;  // the values of the flags below, applied where given
+  CLI::Option *passes = nullptr, *rotations = nullptr, *mirror = nullptr, *vote_radius = nullptr,
+              *vote_min_points = nullptr;
 };
 
 void RunEval(const EvalArgs& a) {
   const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
-  auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  Stage1Inference inf;
+  std::string source = "defaults (reference passes, no test-time augmentation)";
+  if (const auto card = ReadModelCardValue(a.model, "recommended_inference")) {
+    inf = ParseStage1Inference(*card, ModelCardPath(a.model));
+    source = ModelCardPath(a.model);
+  }
+  if (a.passes->count()) inf.passes = a.flags.passes;
+  if (a.rotations->count()) inf.rotations = a.flags.rotations;
+  if (a.mirror->count()) inf.mirror = a.flags.mirror;
+  if (a.vote_radius->count()) inf.vote_radius = a.flags.vote_radius;
+  if (a.vote_min_points->count()) inf.vote_min_points = a.flags.vote_min_points;
+  if (inf.rotations < 1 || nn::kHeadingBins % inf.rotations != 0) {
+    throw InvalidArgument("--rotations must be 1, 2, 3, 4, 6 or 12, got " +
+                          std::to_string(inf.rotations));
+  }
   pipeline::Stage1InstanceConfig cfg;
   cfg.nms_iou = a.nms;
   cfg.min_points = a.min_points;
-  if (!a.passes.empty()) cfg.clustering.passes = ParsePasses(a.passes);
+  cfg.semantic_vote.radius = inf.vote_radius;
+  cfg.semantic_vote.min_points = inf.vote_min_points;
+  if (!inf.passes.empty()) cfg.clustering.passes = ParsePasses(inf.passes);
   cfg.Validate();
+  auto scenes = LoadScenes(a.scans, a.limit, a.threads);
   std::printf("model %s (%s), %zu scenes\n", a.model.c_str(), model.config().ToString().c_str(),
               scenes.size());
   std::string passes;
   for (const auto& p : cfg.clustering.passes) {
     passes += (passes.empty() ? "" : ",") + std::string(p.shifted ? "s" : "o") + Fmt(p.radius);
   }
+  std::printf("inference %s (from %s and the flags)\n", inf.ToString().c_str(), source.c_str());
   std::printf("clustering passes %s, min %d points per cluster, NMS %.2f, keep > %d points\n",
               passes.c_str(), cfg.clustering.min_points, cfg.nms_iou, cfg.min_points);
-  const Stage1Eval r = EvaluateStage1(model, scenes, cfg, a.render > 0);
+  const Stage1Eval r = EvaluateStage1(model, scenes, cfg, a.render > 0, inf.rotations, inf.mirror);
   PrintEval(r);
   if (!a.json.empty()) {
     std::ofstream f(a.json);
@@ -536,6 +668,10 @@ void RunEval(const EvalArgs& a) {
     j["clustering_passes"] = passes;
     j["nms_iou"] = cfg.nms_iou;
     j["min_points"] = cfg.min_points;
+    j["rotations"] = inf.rotations;
+    j["mirror"] = inf.mirror;
+    j["vote_radius"] = inf.vote_radius;
+    j["vote_min_points"] = inf.vote_min_points;
     f << j.dump(2) << "\n";
   }
   if (a.render > 0) {
@@ -558,9 +694,25 @@ void SetupEval(CLI::App& app) {
   app.add_option("--threads", a->threads, "threads reading scene folders");
   app.add_option("--nms", a->nms, "point-IoU NMS threshold");
   app.add_option("--min-points", a->min_points, "keep instances with more points than this");
-  app.add_option("--passes", a->passes,
-                 "clustering passes, default the reference's o0.03,s0.01,s0.03,s0.05 "
-                 "(o = original, s = shifted coordinates, radius in metres)");
+  a->passes = app.add_option(
+      "--passes", a->flags.passes,
+      "clustering passes (o = original, s = shifted coordinates, radius in metres); default: "
+      "the model card's recommended_inference, else the reference's o0.03,s0.01,s0.03,s0.05");
+  a->rotations = app.add_option(
+      "--rotations", a->flags.rotations,
+      "test-time augmentation: average the network over this many rotations about the "
+      "vertical axis (1, 2, 3, 4, 6 or 12); default: the model card's, else 1");
+  a->mirror = app.add_flag("--mirror", a->flags.mirror,
+                           "test-time augmentation: also average over the mirrored scene "
+                           "(doubles the passes; --mirror=false turns the card's off)");
+  a->vote_radius = app.add_option(
+      "--vote-radius", a->flags.vote_radius,
+      "instance-guided semantic vote: BFS radius (m) on the shifted thing points, 0 = "
+      "per-point argmax; default: the model card's, else 0");
+  a->vote_min_points = app.add_option(
+      "--vote-min-points", a->flags.vote_min_points,
+      "smallest cluster that votes (smaller ones keep per-point labels); default: the card's, "
+      "else 20");
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
@@ -572,6 +724,9 @@ struct BenchArgs {
   std::string model = "models/stage1/stage1.pt", json;
   int rooms = 5, points = 100000, threads = 1, repeats = 3;
   std::uint64_t seed = 11;
+  int rotations = 1;  // test-time augmentation, as `dimr stage1 eval`
+  bool mirror = false;
+  double vote_radius = 0;
 };
 
 double Median(std::vector<double> v) {
@@ -609,15 +764,24 @@ void RunBench(const BenchArgs& a) {
     rooms.push_back(std::move(sub));
   }
   const std::vector<int> rfs_to_cad = RfsToCadTable();
-  const pipeline::Stage1InstanceConfig cfg;
-  std::vector<double> vox, kmap, unet, heads, clus, total;
+  const std::vector<bool> is_thing = ThingClasses();
+  pipeline::Stage1InstanceConfig cfg;
+  cfg.semantic_vote.radius = a.vote_radius;
+  cfg.semantic_vote.min_points = 5;
+  cfg.Validate();
+  std::vector<double> vox, kmap, unet, heads, vote, clus, total;
   std::vector<long long> npts;
   for (int rep = 0; rep < a.repeats + 1; ++rep) {  // first round = warm-up
     for (const auto& s : rooms) {
       nn::Stage1Timing t;
       const auto t0 = Clock::now();
-      const nn::Stage1Output out = model.Predict(s, false, &t);
+      nn::Stage1Output out = model.PredictAugmented(s, a.rotations, a.mirror, false, &t);
       const auto t1 = Clock::now();
+      if (cfg.semantic_vote.radius > 0) {
+        out.semantic = pipeline::VoteSemantics(s.points, out.offsets, out.semantic,
+                                               out.semantic_prob, is_thing, cfg.semantic_vote);
+      }
+      const auto tv = Clock::now();
       std::vector<int> cad(out.semantic.size());
       for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
       const auto inst =
@@ -629,7 +793,8 @@ void RunBench(const BenchArgs& a) {
       kmap.push_back(t.kernel_map_ms);
       unet.push_back(t.unet_ms);
       heads.push_back(Seconds(t0, t1) * 1e3 - t.voxelize_ms - t.kernel_map_ms - t.unet_ms);
-      clus.push_back(Seconds(t1, t2) * 1e3);
+      vote.push_back(Seconds(t1, tv) * 1e3);
+      clus.push_back(Seconds(tv, t2) * 1e3);
       total.push_back(Seconds(t0, t2) * 1e3);
       npts.push_back(static_cast<long long>(s.points.size()));
     }
@@ -637,6 +802,9 @@ void RunBench(const BenchArgs& a) {
   std::printf("stage-1 inference, %s, %d rooms x %d repeats, %lld points per room, %d thread(s)\n",
               model.config().ToString().c_str(), a.rooms, a.repeats, npts.empty() ? 0 : npts[0],
               a.threads);
+  std::printf("network passes per room: %d (rotations %d%s), semantic vote radius %.3g m\n",
+              a.rotations * (a.mirror ? 2 : 1), a.rotations, a.mirror ? " x mirror" : "",
+              a.vote_radius);
   std::printf("| step | median ms | min ms | max ms |\n|---|---|---|---|\n");
   auto row = [](const char* name, const std::vector<double>& v) {
     std::printf("| %s | %.1f | %.1f | %.1f |\n", name, Median(v),
@@ -645,7 +813,8 @@ void RunBench(const BenchArgs& a) {
   row("voxelise", vox);
   row("kernel maps (rulebooks)", kmap);
   row("U-Net convolutions", unet);
-  row("heads (+ batch build, softmax, copy-out)", heads);
+  row("heads (+ batch build, softmax, copy-out, TTA averaging)", heads);
+  row("semantic vote", vote);
   row("clustering (4 passes) + NMS", clus);
   row("total", total);
   if (!a.json.empty()) {
@@ -656,9 +825,13 @@ void RunBench(const BenchArgs& a) {
     j["repeats"] = a.repeats;
     j["points_per_room"] = a.points;
     j["threads"] = a.threads;
-    j["median_ms"] = {{"voxelize", Median(vox)},    {"kernel_maps", Median(kmap)},
-                      {"unet", Median(unet)},       {"heads", Median(heads)},
-                      {"clustering", Median(clus)}, {"total", Median(total)}};
+    j["rotations"] = a.rotations;
+    j["mirror"] = a.mirror;
+    j["vote_radius"] = a.vote_radius;
+    j["median_ms"] = {{"voxelize", Median(vox)}, {"kernel_maps", Median(kmap)},
+                      {"unet", Median(unet)},    {"heads", Median(heads)},
+                      {"vote", Median(vote)},    {"clustering", Median(clus)},
+                      {"total", Median(total)}};
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
     f << j.dump(2) << "\n";
@@ -674,6 +847,10 @@ void SetupBench(CLI::App& app) {
   app.add_option("--repeats", a->repeats, "timed rounds (median)")->check(CLI::Range(1, 100));
   app.add_option("--threads", a->threads, "intra-op threads")->check(CLI::Range(1, 256));
   app.add_option("--seed", a->seed, "room seed");
+  app.add_option("--rotations", a->rotations,
+                 "test-time augmentation: network passes over rotations (1, 2, 3, 4, 6, 12)");
+  app.add_flag("--mirror", a->mirror, "test-time augmentation: also the mirrored scene");
+  app.add_option("--vote-radius", a->vote_radius, "semantic vote radius (m), 0 = none");
   app.add_option("--json", a->json, "also write JSON");
   app.callback([a]() {
     nn::SetIntraOpThreads(a->threads);

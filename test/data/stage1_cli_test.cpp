@@ -83,6 +83,47 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
     ++pngs;
   }
   EXPECT_EQ(pngs, 1);
+  EXPECT_EQ(j["rotations"].get<int>(), 1);  // no card recommendation yet: plain inference
+  EXPECT_FALSE(j["mirror"].get<bool>());
+
+  // The card's recommended_inference sets the defaults; flags override them; a bad value is
+  // an error naming the card.
+  std::ofstream(model + "/model.yaml", std::ios::app)
+      << "recommended_inference: \"passes=s0.12,s0.2 rotations=2 mirror=1 vote_radius=0.05 "
+         "vote_min_points=4\"   # chosen on validation\n";
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --json " + d + "/eval_card.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json jc = nlohmann::json::parse(ReadFileText(d + "/eval_card.json"));
+  EXPECT_EQ(jc["rotations"].get<int>(), 2);
+  EXPECT_TRUE(jc["mirror"].get<bool>());
+  EXPECT_DOUBLE_EQ(jc["vote_radius"].get<double>(), 0.05);
+  EXPECT_EQ(jc["vote_min_points"].get<int>(), 4);
+  EXPECT_EQ(jc["clustering_passes"].get<std::string>(), "s0.120,s0.200");
+  EXPECT_EQ(jc["points"].get<long long>(), points);
+  std::tie(rc, out) =
+      RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+             "/cache.bin --rotations 3 --mirror=false --json " + d + "/eval_flags.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json jf = nlohmann::json::parse(ReadFileText(d + "/eval_flags.json"));
+  EXPECT_EQ(jf["rotations"].get<int>(), 3);
+  EXPECT_FALSE(jf["mirror"].get<bool>());
+  EXPECT_DOUBLE_EQ(jf["vote_radius"].get<double>(), 0.05);
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --rotations 5");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("rotations"), std::string::npos) << out;
+  const std::string good_card = ReadFileText(model + "/model.yaml");
+  {
+    std::ofstream f(model + "/model.yaml");
+    f << "recommended_inference: \"rotations=2 spin=3\"\n";
+  }
+  std::tie(rc, out) =
+      RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("model.yaml"), std::string::npos) << out;
+  EXPECT_NE(out.find("spin=3"), std::string::npos) << out;
+  std::ofstream(model + "/model.yaml") << good_card;
 
   // Benchmark table + JSON.
   std::tie(rc, out) =

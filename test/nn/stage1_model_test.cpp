@@ -362,3 +362,126 @@ TEST(Stage1Model, SemanticClassWeightsFromFrequencies) {
 
 }  // namespace
 }  // namespace dimr::nn
+
+namespace dimr::nn {
+namespace {
+
+// A scene whose voxelisation is exact under 90-degree rotations and mirroring about its
+// centroid: every point sits in (0.3, 0.7) of its voxel relative to the bounding-box corner
+// anchors at 0.1 and M + 0.9 voxels, so any rotation by k * 90 degrees or mirror image
+// partitions the points into the same voxels (the voxel grid starts at the minimum corner).
+Stage1Sample LatticeScene(int scale) {
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> f(0.3f, 0.7f), u(0, 1);
+  const int m = 24;
+  const float h = 1.0f / static_cast<float>(scale);
+  Stage1Sample s;
+  s.name = "lattice";
+  auto add = [&](float x, float y, float z) {
+    s.points.emplace_back(x * h, y * h, z * h);
+    s.semantic.push_back(kStage1Ignore);
+    s.instance.push_back(-1);
+  };
+  add(0.1f, 0.1f, 0.5f);
+  add(m + 0.9f, m + 0.9f, 0.5f);
+  for (int i = 0; i <= m; ++i) {
+    for (int j = 0; j <= m; ++j) {
+      add(i + f(rng), j + f(rng), f(rng));  // floor
+      // An L-shaped block and a scattered column make the scene asymmetric.
+      const bool block =
+          (i > 3 && i < 10 && j > 2 && j < 16) || (i >= 10 && i < 14 && j > 2 && j < 6);
+      for (int k = 1; k < 8; ++k) {
+        if ((block && k < 5) || (i == 18 && j == 7) || u(rng) < 0.01f)
+          add(i + f(rng), j + f(rng), k + f(rng));
+      }
+    }
+  }
+  return s;
+}
+
+// p -> centre + R(p - centre) in x-y, R = rotation by k * 90 degrees, optionally after x -> -x.
+Stage1Sample Transform(const Stage1Sample& s, int quarter_turns, bool mirror,
+                       Eigen::Vector2f* centre_out) {
+  Eigen::Vector2d c = Eigen::Vector2d::Zero();
+  for (const auto& p : s.points) c += p.head<2>().cast<double>();
+  c /= static_cast<double>(s.points.size());
+  *centre_out = c.cast<float>();
+  Stage1Sample t = s;
+  for (auto& p : t.points) {
+    double x = p.x() - c.x(), y = p.y() - c.y();
+    if (mirror) x = -x;
+    for (int k = 0; k < quarter_turns; ++k) {
+      const double nx = -y, ny = x;
+      x = nx;
+      y = ny;
+    }
+    p = Eigen::Vector3f(static_cast<float>(c.x() + x), static_cast<float>(c.y() + y), p.z());
+  }
+  return t;
+}
+
+TEST(Stage1Model, RotationAndMirrorAveragingIsEquivariant) {
+  Stage1Config config = TinyConfig();
+  const Stage1Sample s = LatticeScene(config.input.scale);
+  const Stage1Model model(config, 13);
+  const std::size_t n = s.points.size();
+  Eigen::Vector2f centre;
+  const Stage1Sample turned = Transform(s, 1, false, &centre);
+
+  // Single passes are not rotation-invariant: the test has something to show.
+  const Stage1Output plain = model.Predict(s), plain_turned = model.Predict(turned);
+  double plain_diff = 0;
+  for (std::size_t i = 0; i < plain.semantic_prob.size(); ++i) {
+    plain_diff = std::max<double>(plain_diff,
+                                  std::abs(plain.semantic_prob[i] - plain_turned.semantic_prob[i]));
+  }
+  EXPECT_GT(plain_diff, 1e-3);
+
+  // Four rotations: the same average, offsets turned by 90 degrees, heading bins shifted by 3.
+  const Stage1Output a = model.PredictAugmented(s, 4, false);
+  const Stage1Output b = model.PredictAugmented(turned, 4, false);
+  ASSERT_EQ(b.semantic_prob.size(), a.semantic_prob.size());
+  double row = 0;
+  for (int c = 0; c < kStage1Classes; ++c) row += a.semantic_prob[c];
+  EXPECT_NEAR(row, 1.0, 1e-5);
+  for (std::size_t i = 0; i < a.semantic_prob.size(); ++i) {
+    ASSERT_NEAR(b.semantic_prob[i], a.semantic_prob[i], 2e-4) << i;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f& o = a.offsets[i];
+    ASSERT_NEAR(b.offsets[i].x(), -o.y(), 2e-4) << i;
+    ASSERT_NEAR(b.offsets[i].y(), o.x(), 2e-4) << i;
+    ASSERT_NEAR(b.offsets[i].z(), o.z(), 2e-4) << i;
+    for (int k = 0; k < kHeadingBins; ++k) {
+      const std::size_t to = i * kHeadingBins + (k + 3) % kHeadingBins;
+      ASSERT_NEAR(b.heading_prob[to], a.heading_prob[i * kHeadingBins + k], 2e-4);
+      ASSERT_NEAR(b.heading_residual[to], a.heading_residual[i * kHeadingBins + k], 2e-4);
+    }
+  }
+  EXPECT_EQ(a.semantic, b.semantic);
+
+  // Rotations and mirror images: the mirrored scene's average is the mirrored average
+  // (offset x negated, heading bin k -> 6 - k with the residual negated).
+  const Stage1Sample mirrored = Transform(s, 0, true, &centre);
+  const Stage1Output am = model.PredictAugmented(s, 2, true);
+  const Stage1Output bm = model.PredictAugmented(mirrored, 2, true);
+  for (std::size_t i = 0; i < am.semantic_prob.size(); ++i) {
+    ASSERT_NEAR(bm.semantic_prob[i], am.semantic_prob[i], 2e-4) << i;
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    ASSERT_NEAR(bm.offsets[i].x(), -am.offsets[i].x(), 2e-4) << i;
+    ASSERT_NEAR(bm.offsets[i].y(), am.offsets[i].y(), 2e-4) << i;
+    for (int k = 0; k < kHeadingBins; ++k) {
+      const std::size_t to = i * kHeadingBins + (kHeadingBins + 6 - k) % kHeadingBins;
+      ASSERT_NEAR(bm.heading_prob[to], am.heading_prob[i * kHeadingBins + k], 2e-4);
+      ASSERT_NEAR(bm.heading_residual[to], -am.heading_residual[i * kHeadingBins + k], 2e-4);
+    }
+  }
+  // (1, false) is the plain prediction; counts not dividing 12 are rejected.
+  EXPECT_EQ(model.PredictAugmented(s, 1, false).semantic_prob, plain.semantic_prob);
+  EXPECT_THROW(model.PredictAugmented(s, 5, false), InvalidArgument);
+  EXPECT_THROW(model.PredictAugmented(s, 0, true), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::nn

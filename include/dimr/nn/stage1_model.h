@@ -134,6 +134,18 @@ class Stage1Model {
   Stage1Output Predict(const Stage1Sample& sample, bool with_features = false,
                        Stage1Timing* timing = nullptr) const;
 
+  // Test-time augmentation: Predict on the scene rotated about the vertical axis through its
+  // centroid by 2 pi k / rotations, k = 0 .. rotations-1, and (mirror) also on its mirror
+  // image (x -> -x about the centroid) under the same rotations; every result is mapped back
+  // to the input frame (offsets rotated / mirrored back, heading bins shifted back by
+  // 12 k / rotations, mirrored bins b -> 6 - b with negated residuals) and averaged: semantic
+  // and heading probabilities, heading residuals and offsets are means, `semantic` is the
+  // argmax of the mean. `features` and `frame` come from the plain pass; timing sums all
+  // passes. rotations must divide 12 (1, 2, 3, 4, 6, 12) so the heading bins map exactly;
+  // (1, false) is Predict. Throws dimr::InvalidArgument for another count and as Predict.
+  Stage1Output PredictAugmented(const Stage1Sample& sample, int rotations, bool mirror,
+                                bool with_features = false, Stage1Timing* timing = nullptr) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;

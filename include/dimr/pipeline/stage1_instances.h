@@ -13,10 +13,21 @@
 
 namespace dimr::pipeline {
 
+struct SemanticVoteConfig {
+  double radius = 0.0;  // BFS radius on the shifted points, metres; 0 = no vote
+  int min_points = 20;  // smaller clusters keep their per-point labels (>= 1)
+  // Throws dimr::InvalidArgument naming the bad field (radius negative or not finite,
+  // min_points < 1).
+  void Validate() const;
+};
+
 struct Stage1InstanceConfig {
   ClusteringConfig clustering;  // default: the test-time multi-scale passes
   double nms_iou = 0.3;         // NMS drops proposals with IoU > nms_iou, in [0, 1]
   int min_points = 100;         // a proposal is kept if it has > min_points points (>= 0)
+  // Instance-guided semantic vote (VoteSemantics below) applied by the stage-1 evaluation
+  // before clustering; radius 0 = off.
+  SemanticVoteConfig semantic_vote;
   // Throws dimr::InvalidArgument naming the bad field.
   void Validate() const;
 };
@@ -41,5 +52,23 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
     const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
     const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config);
+
+}  // namespace dimr::pipeline
+
+namespace dimr::pipeline {
+
+// Instance-guided semantic refinement: the points whose argmax class is a "thing" class
+// (is_thing[c], e.g. everything but wall and floor) are clustered class-agnostically by BFS on
+// points + offsets with `config.radius`; every cluster of >= min_points points takes the
+// class with the largest summed probability over its points (thing classes only) and all its
+// points get that class. Stuff points and small clusters keep their labels. semantic: N argmax
+// classes in [0, C); semantic_prob: N x C row-major; is_thing: C flags. Returns the refined
+// labels (a copy of `semantic` if radius is 0). Throws dimr::InvalidArgument on size
+// mismatches, a label outside [0, C) or non-finite probabilities of a voting point.
+std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
+                               const std::vector<Eigen::Vector3f>& offsets,
+                               const std::vector<int>& semantic,
+                               const std::vector<float>& semantic_prob,
+                               const std::vector<bool>& is_thing, const SemanticVoteConfig& config);
 
 }  // namespace dimr::pipeline

@@ -1,0 +1,118 @@
+// Instance-guided semantic vote (pipeline::VoteSemantics): hand-made clusters in shifted
+// space, majority by summed probability, stuff points and small clusters untouched, errors.
+#include <gtest/gtest.h>
+
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "dimr/geometry/error.h"
+#include "dimr/pipeline/stage1_instances.h"
+
+namespace dimr::pipeline {
+namespace {
+
+constexpr int kClasses = 4;  // 0 = stuff (wall), 1..3 = things
+
+struct Scene {
+  std::vector<Eigen::Vector3f> points, offsets;
+  std::vector<int> semantic;
+  std::vector<float> prob;
+  void Add(const Eigen::Vector3f& p, const Eigen::Vector3f& centre, std::vector<float> row) {
+    points.push_back(p);
+    offsets.push_back(centre - p);  // perfect offsets: every point lands on its centre
+    int best = 0;
+    for (int c = 1; c < kClasses; ++c) {
+      if (row[c] > row[best]) best = c;
+    }
+    semantic.push_back(best);
+    prob.insert(prob.end(), row.begin(), row.end());
+  }
+};
+
+const std::vector<bool> kIsThing = {false, true, true, true};
+
+TEST(VoteSemantics, ClustersTakeTheClassWithTheLargestSummedProbability) {
+  Scene s;
+  // Object A at (0, 0, 0.5): 6 points say class 1 weakly, 4 say class 2 strongly.
+  // Summed: class 1 = 6 * 0.4 + 4 * 0.05 = 2.6, class 2 = 6 * 0.35 + 4 * 0.9 = 5.7 -> 2,
+  // although a per-point majority would say 1.
+  const Eigen::Vector3f a(0, 0, 0.5f), b(2, 0, 0.5f), c(5, 5, 0.5f);
+  for (int i = 0; i < 6; ++i)
+    s.Add(a + Eigen::Vector3f(0.1f * i, 0, 0), a, {0.0f, 0.4f, 0.35f, 0.25f});
+  for (int i = 0; i < 4; ++i)
+    s.Add(a + Eigen::Vector3f(0, 0.1f * i, 0), a, {0.0f, 0.05f, 0.9f, 0.05f});
+  // Object B at (2, 0, 0.5): all class 3 except one point of class 1 -> all 3.
+  for (int i = 0; i < 7; ++i)
+    s.Add(b + Eigen::Vector3f(0, 0, 0.1f * i), b, {0.0f, 0.1f, 0.1f, 0.8f});
+  s.Add(b + Eigen::Vector3f(0.3f, 0, 0), b, {0.0f, 0.7f, 0.1f, 0.2f});
+  // A wall point whose offset lands on A: stuff keeps its label and does not vote.
+  s.Add(Eigen::Vector3f(0, 1, 1), a, {0.9f, 0.1f, 0.0f, 0.0f});
+  // A 2-point cluster (below min_points 3) keeps its mixed labels.
+  s.Add(c, c, {0.0f, 0.6f, 0.4f, 0.0f});
+  s.Add(c + Eigen::Vector3f(0.1f, 0, 0), c, {0.0f, 0.4f, 0.6f, 0.0f});
+
+  SemanticVoteConfig cfg;
+  cfg.radius = 0.05;
+  cfg.min_points = 3;
+  const std::vector<int> out =
+      VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg);
+  ASSERT_EQ(out.size(), s.points.size());
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(out[i], 2) << i;
+  for (int i = 10; i < 18; ++i) EXPECT_EQ(out[i], 3) << i;
+  EXPECT_EQ(out[18], 0);
+  EXPECT_EQ(out[19], 1);
+  EXPECT_EQ(out[20], 2);
+  // Before the vote object A was split 6 / 4.
+  EXPECT_EQ(s.semantic[0], 1);
+  EXPECT_EQ(s.semantic[6], 2);
+
+  // Radius 0 = no vote.
+  cfg.radius = 0;
+  EXPECT_EQ(VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg), s.semantic);
+  // A radius that links A and B (2 m apart) merges them into one object: summed class 3 =
+  // 6 * 0.25 + 4 * 0.05 + 7 * 0.8 + 0.2 = 7.5 beats class 2 = 5.7 + 0.8 = 6.5.
+  cfg.radius = 2.5;
+  const std::vector<int> merged =
+      VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg);
+  for (int i = 0; i < 18; ++i) EXPECT_EQ(merged[i], 3) << i;
+}
+
+TEST(VoteSemantics, BadInputsGiveClearErrors) {
+  Scene s;
+  s.Add(Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(0, 0, 0), {0.0f, 1.0f, 0.0f, 0.0f});
+  SemanticVoteConfig cfg;
+  cfg.radius = 0.1;
+  auto run = [&](const Scene& t, const SemanticVoteConfig& c) {
+    return VoteSemantics(t.points, t.offsets, t.semantic, t.prob, kIsThing, c);
+  };
+  EXPECT_NO_THROW(run(s, cfg));
+  Scene t = s;
+  t.offsets.clear();
+  EXPECT_THROW(run(t, cfg), InvalidArgument);
+  t = s;
+  t.prob.pop_back();
+  EXPECT_THROW(run(t, cfg), InvalidArgument);
+  t = s;
+  t.semantic[0] = 4;
+  EXPECT_THROW(run(t, cfg), InvalidArgument);
+  t = s;
+  t.prob[2] = std::numeric_limits<float>::quiet_NaN();
+  cfg.min_points = 1;
+  EXPECT_THROW(run(t, cfg), InvalidArgument);
+  SemanticVoteConfig bad;
+  bad.radius = -1;
+  EXPECT_THROW(run(s, bad), InvalidArgument);
+  bad.radius = 0.1;
+  bad.min_points = 0;
+  EXPECT_THROW(run(s, bad), InvalidArgument);
+  try {
+    bad.Validate();
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("min_points"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace dimr::pipeline
