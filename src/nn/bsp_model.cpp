@@ -452,6 +452,75 @@ std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int
   return out;
 }
 
+BspModel::Refined BspModel::RefineLatent(const Eigen::VectorXf& latent, const BspSample& sample,
+                                         int steps, double lr, double prior_weight) const {
+  const auto& c = impl_->config;
+  if (latent.size() != c.latent_dim && latent.size() != 2 * c.latent_dim) {
+    throw InvalidArgument("RefineLatent: latent has " + std::to_string(latent.size()) +
+                          " values, expected " + std::to_string(c.latent_dim));
+  }
+  if (!latent.allFinite()) throw InvalidArgument("RefineLatent: latent code is not finite");
+  if (sample.cad_class < 0 || sample.cad_class >= c.num_classes) {
+    throw InvalidArgument("RefineLatent: class " + std::to_string(sample.cad_class) +
+                          " out of range");
+  }
+  if (steps < 0) throw InvalidArgument("RefineLatent: steps must be >= 0");
+  if (!(lr > 0) || !std::isfinite(lr)) throw InvalidArgument("RefineLatent: lr must be > 0");
+  if (!(prior_weight >= 0) || !std::isfinite(prior_weight)) {
+    throw InvalidArgument("RefineLatent: prior_weight must be >= 0");
+  }
+  const std::size_t n_in = sample.inside_points.size() / 3;
+  const std::size_t n_out = sample.outside_points.size() / 3;
+  if (n_in == 0 || n_out == 0 || sample.inside_points.size() % 3 != 0 ||
+      sample.outside_points.size() % 3 != 0) {
+    throw InvalidArgument("RefineLatent: sample '" + sample.model_id +
+                          "' needs inside and outside points (3 floats each)");
+  }
+  Eigen::VectorXf mu = latent.head(c.latent_dim);
+  impl_->net->eval();
+  std::vector<float> pts_v(sample.inside_points);
+  pts_v.insert(pts_v.end(), sample.outside_points.begin(), sample.outside_points.end());
+  std::vector<float> occ_v(n_in, 1.0f);
+  occ_v.resize(n_in + n_out, 0.0f);
+  const int64_t n = static_cast<int64_t>(n_in + n_out);
+  auto pts = torch::from_blob(pts_v.data(), {1, n, 3}, torch::kFloat).clone().to(impl_->device);
+  auto occ = torch::from_blob(occ_v.data(), {1, n, 1}, torch::kFloat).clone().to(impl_->device);
+  // Balance inside and outside points as training does (half each).
+  auto weight = torch::where(occ > 0.5f, torch::full_like(occ, 0.5f / static_cast<float>(n_in)),
+                             torch::full_like(occ, 0.5f / static_cast<float>(n_out)));
+  auto start =
+      torch::from_blob(mu.data(), {1, c.latent_dim}, torch::kFloat).clone().to(impl_->device);
+  auto z = start.clone().requires_grad_(true);
+  auto cls = torch::full({1}, sample.cad_class, torch::kLong).to(impl_->device);
+  auto B =
+      (impl_->net->generator->convex_layer_weights.detach() > kConvexThreshold).to(torch::kFloat);
+  auto recon_of = [&](const torch::Tensor& code) {
+    auto planes = impl_->net->Planes(code, cls);
+    auto h1 = BspNetImpl::PlaneExcess(pts, planes);
+    auto h3 = std::get<0>(torch::matmul(h1, B).min(2, /*keepdim=*/true));
+    return torch::sum(weight *
+                      ((1 - occ) * (1 - torch::clamp_max(h3, 1)) + occ * torch::clamp_min(h3, 0)));
+  };
+  Refined r;
+  {
+    torch::NoGradGuard no_grad;
+    r.loss_before = recon_of(start).item<double>();
+  }
+  torch::optim::Adam opt({z}, torch::optim::AdamOptions(lr));
+  for (int step = 0; step < steps; ++step) {
+    auto loss = recon_of(z) + prior_weight * torch::mean(torch::pow(z - start, 2));
+    opt.zero_grad();
+    loss.backward();
+    opt.step();
+  }
+  torch::NoGradGuard no_grad;
+  r.loss_after = recon_of(z).item<double>();
+  auto out = z.detach().to(torch::kCPU).contiguous();
+  r.mu.resize(c.latent_dim);
+  std::copy(out.data_ptr<float>(), out.data_ptr<float>() + c.latent_dim, r.mu.data());
+  return r;
+}
+
 double BspModel::EvaluateIoU(const BspDataset& data) const {
   CheckDataset(data, impl_->config, "evaluation set");
   if (data.samples.empty()) return 0.0;

@@ -142,6 +142,8 @@ struct EvalArgs {
   std::string model, data, mesh_dir;
   int limit = 0;
   float dilation = -1.0f;  // < 0: the model card's recommended value
+  int refine_steps = 0;    // latent refinement on the shape's own occupancy (0 = encoder only)
+  double refine_lr = 0.01;
 };
 
 void RunEval(const EvalArgs& a) {
@@ -161,8 +163,8 @@ void RunEval(const EvalArgs& a) {
   if (!a.mesh_dir.empty()) std::filesystem::create_directories(a.mesh_dir);
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     const auto& sample = data.samples[s];
-    const Eigen::VectorXf mu =
-        codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
+    Eigen::VectorXf mu = codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
+    if (a.refine_steps > 0) mu = model.RefineLatent(mu, sample, a.refine_steps, a.refine_lr).mu;
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
     pipeline::BspMeshOptions mopt;
     mopt.dilation = dilation;
@@ -344,6 +346,11 @@ void SetupEval(CLI::App& app) {
   app.add_option("--data", a->data)->required();
   app.add_option("--mesh-dir", a->mesh_dir, "write the decoded meshes here");
   app.add_option("--limit", a->limit, "evaluate at most this many shapes");
+  app.add_option("--refine-steps", a->refine_steps,
+                 "refine each code by this many Adam steps on the shape's own inside/outside "
+                 "points (auto-decoder style; 0 = the encoder's mu)")
+      ->check(CLI::Range(0, 10000));
+  app.add_option("--refine-lr", a->refine_lr, "learning rate of the latent refinement");
   tools::AddBspDilationOption(app, &a->dilation);
   app.callback([a]() { RunEval(*a); });
 }

@@ -187,3 +187,45 @@ TEST(BspDataset, RoundTripAndTruncation) {
 
 }  // namespace
 }  // namespace dimr::nn
+
+namespace dimr::nn {
+namespace {
+
+TEST(BspModel, LatentRefinementLowersTheShapeLoss) {
+  BspModel model(TinyConfig(), 3);
+  BspTrainOptions opt;
+  opt.epochs_phase0 = 30;
+  opt.epochs_phase1 = 10;
+  opt.batch_size = 4;
+  opt.points_per_sample = 256;
+  opt.learning_rate = 3e-3;
+  opt.kl_weight = 1e-3;
+  opt.threads = 1;
+  opt.seed = 5;
+  const BspDataset data = TinyData();
+  model.Train(data, BspDataset(), opt);
+  // A box the model never saw.
+  const BspSample unseen = BoxSample({0.7f, 0.4f, 0.3f}, 0, 9);
+  const auto [mu, logvar] = model.Encode(unseen.grid, unseen.cad_class);
+  const Eigen::MatrixXf planes_before = model.DecodePlanes(mu, 0);
+  const BspModel::Refined r = model.RefineLatent(mu, unseen, 40, 0.02);
+  EXPECT_LT(r.loss_after, 0.9 * r.loss_before) << r.loss_before << " -> " << r.loss_after;
+  EXPECT_GT((r.mu - mu).norm(), 1e-4f);
+  // Zero steps keep the code; a strong prior keeps the code closer than no prior.
+  const BspModel::Refined none = model.RefineLatent(mu, unseen, 0);
+  EXPECT_EQ((none.mu - mu).cwiseAbs().maxCoeff(), 0.f);
+  EXPECT_DOUBLE_EQ(none.loss_after, none.loss_before);
+  const BspModel::Refined tied = model.RefineLatent(mu, unseen, 40, 0.02, 100.0);
+  EXPECT_LT((tied.mu - mu).norm(), (r.mu - mu).norm());
+  // The decoder is untouched: decoding mu again gives the same planes.
+  EXPECT_EQ((model.DecodePlanes(mu, 0) - planes_before).cwiseAbs().maxCoeff(), 0.f);
+  BspSample empty = unseen;
+  empty.outside_points.clear();
+  EXPECT_THROW(model.RefineLatent(mu, empty, 5), InvalidArgument);
+  EXPECT_THROW(model.RefineLatent(mu, unseen, -1), InvalidArgument);
+  EXPECT_THROW(model.RefineLatent(mu, unseen, 5, 0.0), InvalidArgument);
+  EXPECT_THROW(model.RefineLatent(Eigen::VectorXf::Zero(3), unseen, 5), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::nn

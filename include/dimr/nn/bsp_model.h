@@ -103,6 +103,19 @@ class BspModel {
                                       const Eigen::MatrixX3f& points) const;
   // Mean IoU between decoded (mu) and true occupancy over the query points of `data`.
   double EvaluateIoU(const BspDataset& data) const;
+  // Latent refinement (auto-decoder style, for shapes whose occupancy is known, e.g. the CAD
+  // pool): starting from `latent` (mu), `steps` Adam steps (learning rate `lr`) on the
+  // discrete-phase reconstruction loss of the sample's inside/outside points, plus
+  // prior_weight * mean((z - latent)^2) to stay near the encoder's code. Decoder weights are
+  // untouched. Returns the refined mu and the reconstruction loss (inside/outside balanced)
+  // before and after. Throws dimr::InvalidArgument for a bad latent size, class, steps < 0,
+  // lr <= 0, prior_weight < 0 or a sample without inside or outside points.
+  struct Refined {
+    Eigen::VectorXf mu;
+    double loss_before = 0, loss_after = 0;
+  };
+  Refined RefineLatent(const Eigen::VectorXf& latent, const BspSample& sample, int steps,
+                       double lr = 0.01, double prior_weight = 0.0) const;
   std::int64_t NumParameters() const;
 
  private:
