@@ -96,17 +96,23 @@ TEST(BspModel, DecoderIsDeterministicAndShaped) {
   EXPECT_THROW(model.DecodePlanes(z, 2), InvalidArgument);
 }
 
-TEST(BspModel, TinyTrainingLowersTheLoss) {
-  BspModel model(TinyConfig(), 3);
+// Options of the tiny training runs: `phase0` continuous then `phase1` discrete epochs.
+BspTrainOptions TinyTraining(int phase0, int phase1) {
   BspTrainOptions opt;
-  opt.epochs_phase0 = 40;
-  opt.epochs_phase1 = 0;
+  opt.epochs_phase0 = phase0;
+  opt.epochs_phase1 = phase1;
   opt.batch_size = 4;
   opt.points_per_sample = 256;
   opt.learning_rate = 3e-3;
   opt.kl_weight = 1e-3;
   opt.threads = 1;
   opt.seed = 5;
+  return opt;
+}
+
+TEST(BspModel, TinyTrainingLowersTheLoss) {
+  BspModel model(TinyConfig(), 3);
+  const BspTrainOptions opt = TinyTraining(40, 0);
   const BspDataset data = TinyData();
   const auto logs = model.Train(data, BspDataset(), opt);
   ASSERT_EQ(logs.size(), 40u);
@@ -185,25 +191,9 @@ TEST(BspDataset, RoundTripAndTruncation) {
   }
 }
 
-}  // namespace
-}  // namespace dimr::nn
-
-namespace dimr::nn {
-namespace {
-
 TEST(BspModel, LatentRefinementLowersTheShapeLoss) {
   BspModel model(TinyConfig(), 3);
-  BspTrainOptions opt;
-  opt.epochs_phase0 = 30;
-  opt.epochs_phase1 = 10;
-  opt.batch_size = 4;
-  opt.points_per_sample = 256;
-  opt.learning_rate = 3e-3;
-  opt.kl_weight = 1e-3;
-  opt.threads = 1;
-  opt.seed = 5;
-  const BspDataset data = TinyData();
-  model.Train(data, BspDataset(), opt);
+  model.Train(TinyData(), BspDataset(), TinyTraining(30, 10));
   // A box the model never saw.
   const BspSample unseen = BoxSample({0.7f, 0.4f, 0.3f}, 0, 9);
   const auto [mu, logvar] = model.Encode(unseen.grid, unseen.cad_class);

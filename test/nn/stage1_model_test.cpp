@@ -316,12 +316,6 @@ TEST(Stage1Model, CheckpointResumeContinuesTraining) {
   fs::remove_all(dir);
 }
 
-}  // namespace
-}  // namespace dimr::nn
-
-namespace dimr::nn {
-namespace {
-
 TEST(Stage1Model, SemanticClassWeightsFromFrequencies) {
   Stage1Sample s;
   auto add = [&](int cls, int n) {
@@ -359,12 +353,6 @@ TEST(Stage1Model, SemanticClassWeightsFromFrequencies) {
   std::vector<Stage1Sample> one{TinyRoom(8)};
   EXPECT_THROW(model.Train(one, opt), InvalidArgument);
 }
-
-}  // namespace
-}  // namespace dimr::nn
-
-namespace dimr::nn {
-namespace {
 
 // A scene whose voxelisation is exact under 90-degree rotations and mirroring about its
 // centroid: every point sits in (0.3, 0.7) of its voxel relative to the bounding-box corner
