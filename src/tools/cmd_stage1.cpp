@@ -95,31 +95,53 @@ struct Stage1Eval {
   std::vector<std::vector<pipeline::ScoredInstance>> predictions;  // per scene (if kept)
 };
 
+// One scene through stage 1 as `dimr stage1 eval` and `dimr bench stage1` run it: the network
+// (with test-time augmentation), the semantic vote, then clustering + NMS, each part timed.
+struct SceneInference {
+  nn::Stage1Output out;  // `semantic` after the vote
+  std::vector<pipeline::ScoredInstance> instances;
+  nn::Stage1Timing timing;  // the network's parts
+  double network_ms = 0, vote_ms = 0, cluster_ms = 0;
+};
+
+SceneInference InferScene(const nn::Stage1Model& model, const nn::Stage1Sample& s,
+                          const pipeline::Stage1InstanceConfig& cfg, int rotations, bool mirror) {
+  static const std::vector<int> rfs_to_cad = RfsToCadTable();
+  static const std::vector<bool> is_thing = ThingClasses();
+  SceneInference r;
+  const auto t0 = Clock::now();
+  r.out = model.PredictAugmented(s, rotations, mirror, false, &r.timing);
+  const auto t1 = Clock::now();
+  if (cfg.semantic_vote.radius > 0) {
+    r.out.semantic = pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic,
+                                             r.out.semantic_prob, is_thing, cfg.semantic_vote);
+  }
+  const auto t2 = Clock::now();
+  std::vector<int> cad(r.out.semantic.size());
+  for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[r.out.semantic[i]];
+  r.instances =
+      pipeline::ExtractStage1Instances(s.points, r.out.offsets, cad, r.out.semantic_prob,
+                                       r.out.heading_prob, r.out.heading_residual, rfs_to_cad, cfg);
+  const auto t3 = Clock::now();
+  r.network_ms = Seconds(t0, t1) * 1e3;
+  r.vote_ms = Seconds(t1, t2) * 1e3;
+  r.cluster_ms = Seconds(t2, t3) * 1e3;
+  return r;
+}
+
 Stage1Eval EvaluateStage1(const nn::Stage1Model& model, const std::vector<nn::Stage1Sample>& scenes,
                           const pipeline::Stage1InstanceConfig& cfg, bool keep_predictions,
                           int rotations = 1, bool mirror = false) {
   Stage1Eval r;
-  const std::vector<int> rfs_to_cad = RfsToCadTable();
-  const std::vector<bool> is_thing = ThingClasses();
   std::vector<int> gt_sem, pred_sem;
   std::vector<eval::InstanceScene> inst_scenes;
   std::vector<double> heading_errors;
   for (const auto& s : scenes) {
-    const auto t0 = Clock::now();
-    nn::Stage1Output out = model.PredictAugmented(s, rotations, mirror);
-    const auto t1 = Clock::now();
-    if (cfg.semantic_vote.radius > 0) {
-      out.semantic = pipeline::VoteSemantics(s.points, out.offsets, out.semantic, out.semantic_prob,
-                                             is_thing, cfg.semantic_vote);
-    }
-    std::vector<int> cad(out.semantic.size());
-    for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
-    auto inst =
-        pipeline::ExtractStage1Instances(s.points, out.offsets, cad, out.semantic_prob,
-                                         out.heading_prob, out.heading_residual, rfs_to_cad, cfg);
-    const auto t2 = Clock::now();
-    r.network_s += Seconds(t0, t1);
-    r.cluster_s += Seconds(t1, t2);
+    SceneInference si = InferScene(model, s, cfg, rotations, mirror);
+    const nn::Stage1Output& out = si.out;
+    auto& inst = si.instances;
+    r.network_s += si.network_ms / 1e3;
+    r.cluster_s += (si.vote_ms + si.cluster_ms) / 1e3;
     r.points += static_cast<long long>(s.points.size());
     gt_sem.insert(gt_sem.end(), s.semantic.begin(), s.semantic.end());
     pred_sem.insert(pred_sem.end(), out.semantic.begin(), out.semantic.end());
@@ -763,8 +785,6 @@ void RunBench(const BenchArgs& a) {
     sub.instances = s.instances;
     rooms.push_back(std::move(sub));
   }
-  const std::vector<int> rfs_to_cad = RfsToCadTable();
-  const std::vector<bool> is_thing = ThingClasses();
   pipeline::Stage1InstanceConfig cfg;
   cfg.semantic_vote.radius = a.vote_radius;
   cfg.semantic_vote.min_points = 5;
@@ -773,29 +793,16 @@ void RunBench(const BenchArgs& a) {
   std::vector<long long> npts;
   for (int rep = 0; rep < a.repeats + 1; ++rep) {  // first round = warm-up
     for (const auto& s : rooms) {
-      nn::Stage1Timing t;
-      const auto t0 = Clock::now();
-      nn::Stage1Output out = model.PredictAugmented(s, a.rotations, a.mirror, false, &t);
-      const auto t1 = Clock::now();
-      if (cfg.semantic_vote.radius > 0) {
-        out.semantic = pipeline::VoteSemantics(s.points, out.offsets, out.semantic,
-                                               out.semantic_prob, is_thing, cfg.semantic_vote);
-      }
-      const auto tv = Clock::now();
-      std::vector<int> cad(out.semantic.size());
-      for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[out.semantic[i]];
-      const auto inst =
-          pipeline::ExtractStage1Instances(s.points, out.offsets, cad, out.semantic_prob,
-                                           out.heading_prob, out.heading_residual, rfs_to_cad, cfg);
-      const auto t2 = Clock::now();
+      const SceneInference si = InferScene(model, s, cfg, a.rotations, a.mirror);
       if (rep == 0) continue;
+      const nn::Stage1Timing& t = si.timing;
       vox.push_back(t.voxelize_ms);
       kmap.push_back(t.kernel_map_ms);
       unet.push_back(t.unet_ms);
-      heads.push_back(Seconds(t0, t1) * 1e3 - t.voxelize_ms - t.kernel_map_ms - t.unet_ms);
-      vote.push_back(Seconds(t1, tv) * 1e3);
-      clus.push_back(Seconds(tv, t2) * 1e3);
-      total.push_back(Seconds(t0, t2) * 1e3);
+      heads.push_back(si.network_ms - t.voxelize_ms - t.kernel_map_ms - t.unet_ms);
+      vote.push_back(si.vote_ms);
+      clus.push_back(si.cluster_ms);
+      total.push_back(si.network_ms + si.vote_ms + si.cluster_ms);
       npts.push_back(static_cast<long long>(s.points.size()));
     }
   }
