@@ -201,6 +201,8 @@ void RunEval(const EvalArgs& a) {
 // ---------------------------------------------------------------- encode-pool
 struct PoolArgs {
   std::string model, data, out;
+  int refine_steps = 0;  // latent refinement of each mu on the model's own occupancy samples
+  double refine_lr = 0.01;
 };
 
 void RunEncodePool(const PoolArgs& a) {
@@ -208,10 +210,16 @@ void RunEncodePool(const PoolArgs& a) {
   const nn::BspDataset data = nn::BspDataset::Load(a.data);
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   pipeline::ShapePool pool(model.config().latent_dim);
+  const int L = model.config().latent_dim;
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
-    pool.Add({data.samples[s].model_id, data.samples[s].cad_class,
-              codes.row(static_cast<Eigen::Index>(s)).transpose()});
+    Eigen::VectorXf code = codes.row(static_cast<Eigen::Index>(s)).transpose();
+    if (a.refine_steps > 0) {
+      code.head(L) = model.RefineLatent(code, data.samples[s], a.refine_steps, a.refine_lr).mu;
+      std::fprintf(stderr, "\rrefine: %zu/%zu", s + 1, data.samples.size());
+    }
+    pool.Add({data.samples[s].model_id, data.samples[s].cad_class, code});
   }
+  if (a.refine_steps > 0) std::fprintf(stderr, "\n");
   pool.Save(a.out);
   std::printf("encoded %zu CAD models into %s (content hash %s)\n", pool.size(), a.out.c_str(),
               pool.ContentHash().c_str());
@@ -360,6 +368,11 @@ void SetupPool(CLI::App& app) {
   app.add_option("--model", a->model)->required();
   app.add_option("--data", a->data, "dataset of the CAD models to encode")->required();
   app.add_option("--out", a->out)->required();
+  app.add_option("--refine-steps", a->refine_steps,
+                 "refine each mu by this many Adam steps on the model's own inside/outside "
+                 "points (0 = the encoder's mu; logvar is kept)")
+      ->check(CLI::Range(0, 10000));
+  app.add_option("--refine-lr", a->refine_lr, "learning rate of the latent refinement");
   app.callback([a]() { RunEncodePool(*a); });
 }
 

@@ -70,6 +70,24 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   EXPECT_NE(rc, 0);
   EXPECT_NE(out.find("lr"), std::string::npos) << out;
 
+  // The pool: one entry per model; refined codes give another pool (another content hash).
+  auto pool_hash = [](const std::string& text) {
+    std::smatch m;
+    return std::regex_search(text, m, std::regex("content hash ([0-9a-f]+)")) ? m[1].str()
+                                                                              : std::string();
+  };
+  std::tie(rc, out) = RunCli("encode-pool --model " + d + "/bsp.pt --data " + d +
+                             "/data.bin --out " + d + "/pool.bin");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("encoded 8 CAD models"), std::string::npos) << out;
+  const std::string plain_hash = pool_hash(out);
+  ASSERT_FALSE(plain_hash.empty()) << out;
+  std::tie(rc, out) = RunCli("encode-pool --model " + d + "/bsp.pt --data " + d +
+                             "/data.bin --out " + d + "/pool_refined.bin --refine-steps 5");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(pool_hash(out), plain_hash) << out;
+  EXPECT_NE(pool_hash(out), "") << out;
+
   // A malformed card: non-zero exit naming the card.
   std::ofstream(d + "/model.yaml") << "recommended_dilation: wide\n";
   std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
