@@ -250,6 +250,22 @@ torch::Tensor KlTerm(const torch::Tensor& mu, const torch::Tensor& logvar) {
   return -0.5 * torch::mean(1 + logvar - torch::exp(logvar) - mu * mu);
 }
 
+// A latent code (mu, or mu + logvar) and a class a model of config `c` can decode; `who`
+// names the caller in the error.
+void CheckLatent(const BspConfig& c, const Eigen::VectorXf& latent, int cad_class,
+                 const char* who) {
+  if (latent.size() != c.latent_dim && latent.size() != 2 * c.latent_dim) {
+    throw InvalidArgument(std::string(who) + ": latent has " + std::to_string(latent.size()) +
+                          " values, expected " + std::to_string(c.latent_dim) + " (mu) or " +
+                          std::to_string(2 * c.latent_dim) + " (mu, logvar)");
+  }
+  if (cad_class < 0 || cad_class >= c.num_classes) {
+    throw InvalidArgument(std::string(who) + ": class " + std::to_string(cad_class) +
+                          " out of range");
+  }
+  if (!latent.allFinite()) throw InvalidArgument(std::string(who) + ": latent code is not finite");
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------
@@ -388,15 +404,7 @@ Eigen::MatrixXf BspModel::EncodeAll(const BspDataset& data) const {
 
 Eigen::MatrixXf BspModel::DecodePlanes(const Eigen::VectorXf& latent, int cad_class) const {
   const auto& c = impl_->config;
-  if (latent.size() != c.latent_dim && latent.size() != 2 * c.latent_dim) {
-    throw InvalidArgument("DecodePlanes: latent has " + std::to_string(latent.size()) +
-                          " values, expected " + std::to_string(c.latent_dim) + " (mu) or " +
-                          std::to_string(2 * c.latent_dim) + " (mu, logvar)");
-  }
-  if (cad_class < 0 || cad_class >= c.num_classes) {
-    throw InvalidArgument("DecodePlanes: class " + std::to_string(cad_class) + " out of range");
-  }
-  if (!latent.allFinite()) throw InvalidArgument("DecodePlanes: latent code is not finite");
+  CheckLatent(c, latent, cad_class, "DecodePlanes");
   torch::NoGradGuard no_grad;
   impl_->net->eval();
   auto z = torch::from_blob(const_cast<float*>(latent.data()), {1, c.latent_dim}, torch::kFloat)
@@ -455,15 +463,7 @@ std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int
 BspModel::Refined BspModel::RefineLatent(const Eigen::VectorXf& latent, const BspSample& sample,
                                          int steps, double lr, double prior_weight) const {
   const auto& c = impl_->config;
-  if (latent.size() != c.latent_dim && latent.size() != 2 * c.latent_dim) {
-    throw InvalidArgument("RefineLatent: latent has " + std::to_string(latent.size()) +
-                          " values, expected " + std::to_string(c.latent_dim));
-  }
-  if (!latent.allFinite()) throw InvalidArgument("RefineLatent: latent code is not finite");
-  if (sample.cad_class < 0 || sample.cad_class >= c.num_classes) {
-    throw InvalidArgument("RefineLatent: class " + std::to_string(sample.cad_class) +
-                          " out of range");
-  }
+  CheckLatent(c, latent, sample.cad_class, "RefineLatent");
   if (steps < 0) throw InvalidArgument("RefineLatent: steps must be >= 0");
   if (!(lr > 0) || !std::isfinite(lr)) throw InvalidArgument("RefineLatent: lr must be > 0");
   if (!(prior_weight >= 0) || !std::isfinite(prior_weight)) {
