@@ -578,7 +578,22 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   int phase0_end = opt.epochs_phase0;
   int total_epochs = opt.epochs_phase0 + opt.epochs_phase1 + opt.epochs_phase2;
   int start_epoch = 0;
-  torch::optim::Adam optimizer(net->parameters(), torch::optim::AdamOptions(opt.learning_rate));
+  // With a frozen decoder only the encoder's parameters are optimised; the frozen ones do not
+  // track gradients (the code still gets its gradient through them).
+  std::vector<torch::Tensor> frozen;
+  if (opt.freeze_decoder) {
+    for (auto& p : net->decoder->parameters()) frozen.push_back(p);
+    for (auto& p : net->generator->parameters()) frozen.push_back(p);
+  }
+  for (auto& p : frozen) p.set_requires_grad(false);
+  struct Unfreeze {
+    std::vector<torch::Tensor>& params;
+    ~Unfreeze() {
+      for (auto& p : params) p.set_requires_grad(true);
+    }
+  } unfreeze{frozen};
+  torch::optim::Adam optimizer(opt.freeze_decoder ? net->encoder->parameters() : net->parameters(),
+                               torch::optim::AdamOptions(opt.learning_rate));
   const std::vector<int64_t> resumed =
       opt.resume ? ResumeTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "bsp_cvae",
                                             "BSP-CVAE", impl_->config.ToString(), 2)
@@ -623,6 +638,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     }
     const double beta = opt.kl_weight * static_cast<double>(epoch + 1) / total_epochs;
     net->train();
+    if (opt.freeze_decoder) net->decoder->eval();  // BatchNorm as at inference, stats frozen
     std::vector<std::size_t> order(train.samples.size());
     std::iota(order.begin(), order.end(), 0);
     std::shuffle(order.begin(), order.end(), rng);

@@ -37,6 +37,7 @@ struct TrainArgs {
   std::uint64_t seed = 1;
   bool fp16 = true;
   bool fp32 = false;
+  bool freeze_decoder = false;
 };
 
 nn::BspConfig ConfigFromArg(const std::string& text) {
@@ -61,6 +62,7 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "  train_data: \"" << a.train << "\"\n";
   y << "  val_data: \"" << a.val << "\"\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
+  if (a.freeze_decoder) y << "  frozen: decoder and convex/union weights (encoder trained)\n";
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
@@ -98,6 +100,10 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.phase0_minutes = a.phase0_minutes;
   opt.lr_step_epochs = a.lr_step;
   opt.checkpoint_every = a.checkpoint_every;
+  opt.freeze_decoder = a.freeze_decoder;
+  if (a.freeze_decoder && a.init.empty()) {
+    throw InvalidArgument("--freeze-decoder needs --init (a trained decoder to keep)");
+  }
   std::filesystem::create_directories(a.out);
   opt.checkpoint_path = a.out + "/checkpoint.pt";
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
@@ -341,6 +347,9 @@ void SetupTrain(CLI::App& app) {
       ->check(CLI::Range(1, 1000000));
   app.add_option("--checkpoint-every", a->checkpoint_every);
   app.add_flag("--fp32", a->fp32, "store the final weights in fp32 instead of fp16");
+  app.add_flag("--freeze-decoder", a->freeze_decoder,
+               "train the encoder only (with --init): the decoder and the convex/union weights "
+               "stay as they are, so the encoder learns codes the decoder turns into the shapes");
   app.callback([a, &app, config_opt]() {
     a->fp16 = !a->fp32;
     a->config_given = config_opt->count() > 0;

@@ -217,5 +217,35 @@ TEST(BspModel, LatentRefinementLowersTheShapeLoss) {
   EXPECT_THROW(model.RefineLatent(Eigen::VectorXf::Zero(3), unseen, 5), InvalidArgument);
 }
 
+TEST(BspModel, FrozenDecoderTrainsTheEncoderOnly) {
+  BspModel model(TinyConfig(), 3);
+  const BspDataset data = TinyData();
+  model.Train(data, BspDataset(), TinyTraining(30, 10));
+  const Eigen::VectorXf z = Eigen::VectorXf::LinSpaced(8, -0.5f, 0.5f);
+  const Eigen::MatrixXf planes_before = model.DecodePlanes(z, 1);
+  const auto convexes_before = model.ConvexPlanes();
+  const auto code_before = model.Encode(data.samples[2].grid, 1).first;
+  // Shapes the encoder alone cannot fit yet: the frozen run must lower the loss through it.
+  BspTrainOptions opt = TinyTraining(0, 30);
+  opt.freeze_decoder = true;
+  opt.seed = 11;
+  const auto logs = model.Train(data, BspDataset(), opt);
+  ASSERT_EQ(logs.size(), 30u);
+  double first = 0, last = 0;
+  for (int i = 0; i < 5; ++i) {
+    first += logs[i].recon_loss;
+    last += logs[logs.size() - 1 - i].recon_loss;
+  }
+  EXPECT_LT(last, 0.95 * first) << "first " << first / 5 << " last " << last / 5;
+  // Decoder (weights and BatchNorm statistics) and convex/union weights bit-identical.
+  EXPECT_EQ((model.DecodePlanes(z, 1) - planes_before).cwiseAbs().maxCoeff(), 0.f);
+  EXPECT_EQ(model.ConvexPlanes(), convexes_before);
+  // The encoder moved.
+  EXPECT_GT((model.Encode(data.samples[2].grid, 1).first - code_before).norm(), 1e-4f);
+  // The decoder trains again afterwards (its parameters were unfrozen).
+  model.Train(data, BspDataset(), TinyTraining(0, 2));
+  EXPECT_GT((model.DecodePlanes(z, 1) - planes_before).cwiseAbs().maxCoeff(), 0.f);
+}
+
 }  // namespace
 }  // namespace dimr::nn

@@ -54,6 +54,11 @@ struct BspTrainOptions {
   bool resume = true;         // continue from checkpoint_path if it exists
   double max_minutes = 0;     // stop (after checkpointing) when exceeded; 0 = no limit
   double phase0_minutes = 0;  // end phase 0 early after this many minutes; 0 = no limit
+  // Train the encoder only: the decoder (in inference mode, BatchNorm running statistics) and
+  // the convex/union weights stay fixed, so the encoder learns codes the shipped decoder turns
+  // into the shapes (amortised latent refinement). Weights of a frozen part are bit-identical
+  // after training.
+  bool freeze_decoder = false;
 };
 
 struct BspEpochLog {
