@@ -239,9 +239,12 @@ struct BspNetImpl : torch::nn::Module {
   }
 
   // points [B, N, 3] -> h1 [B, N, P]
-  static torch::Tensor PlaneExcess(const torch::Tensor& points, const torch::Tensor& planes) {
+  // `dilation` moves every plane outwards (as BspMeshOptions::dilation).
+  static torch::Tensor PlaneExcess(const torch::Tensor& points, const torch::Tensor& planes,
+                                   double dilation = 0.0) {
     auto ones = torch::ones({points.size(0), points.size(1), 1}, points.options());
-    return torch::relu(torch::bmm(torch::cat({points, ones}, 2), planes));
+    auto v = torch::bmm(torch::cat({points, ones}, 2), planes);
+    return torch::relu(dilation > 0 ? v - dilation : v);
   }
 };
 TORCH_MODULE(BspNet);
@@ -554,6 +557,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   CheckDataset(train, impl_->config, "training set");
   if (!val.samples.empty()) CheckDataset(val, impl_->config, "validation set");
   if (train.samples.empty()) throw InvalidArgument("training set is empty");
+  if (!(opt.loss_dilation >= 0) || !std::isfinite(opt.loss_dilation)) {
+    throw InvalidArgument("BspTrainOptions: loss_dilation must be finite and >= 0");
+  }
   if (opt.batch_size < 1 || opt.points_per_sample < 2) {
     throw InvalidArgument("BspTrainOptions: batch_size >= 1 and points_per_sample >= 2 required");
   }
@@ -675,9 +681,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
       const int L = impl_->config.latent_dim;
       auto mu = code.slice(1, 0, L);
       auto logvar = code.slice(1, L, 2 * L);
-      auto z = mu + torch::randn_like(mu) * torch::exp(0.5 * logvar);
+      auto z = opt.sample_latent ? mu + torch::randn_like(mu) * torch::exp(0.5 * logvar) : mu;
       auto planes = net->Planes(z, classes);
-      auto h1 = BspNetImpl::PlaneExcess(pts, planes);
+      auto h1 = BspNetImpl::PlaneExcess(pts, planes, opt.loss_dilation);
       auto T = net->generator->convex_layer_weights;
       auto W = net->generator->concave_layer_weights;
       torch::Tensor recon;

@@ -38,6 +38,8 @@ struct TrainArgs {
   bool fp16 = true;
   bool fp32 = false;
   bool freeze_decoder = false;
+  bool no_sampling = false;
+  double loss_dilation = 0.0;
 };
 
 nn::BspConfig ConfigFromArg(const std::string& text) {
@@ -63,6 +65,8 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "  val_data: \"" << a.val << "\"\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   if (a.freeze_decoder) y << "  frozen: decoder and convex/union weights (encoder trained)\n";
+  if (a.no_sampling) y << "  latent_in_loss: mu (no sampling)\n";
+  if (a.loss_dilation > 0) y << "  loss_dilation: " << a.loss_dilation << "\n";
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
@@ -101,6 +105,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.lr_step_epochs = a.lr_step;
   opt.checkpoint_every = a.checkpoint_every;
   opt.freeze_decoder = a.freeze_decoder;
+  opt.sample_latent = !a.no_sampling;
+  opt.loss_dilation = a.loss_dilation;
   if (a.freeze_decoder && a.init.empty()) {
     throw InvalidArgument("--freeze-decoder needs --init (a trained decoder to keep)");
   }
@@ -347,6 +353,13 @@ void SetupTrain(CLI::App& app) {
       ->check(CLI::Range(1, 1000000));
   app.add_option("--checkpoint-every", a->checkpoint_every);
   app.add_flag("--fp32", a->fp32, "store the final weights in fp32 instead of fp16");
+  app.add_flag("--no-sampling", a->no_sampling,
+               "decode mu itself in the reconstruction loss instead of a sample mu + eps * sigma "
+               "(the code inference decodes; with --freeze-decoder: amortised refinement)");
+  app.add_option("--loss-dilation", a->loss_dilation,
+                 "move every plane outwards by this much in the reconstruction loss (the "
+                 "decoding rule of the card's recommended_dilation); 0 = reference")
+      ->check(CLI::NonNegativeNumber);
   app.add_flag("--freeze-decoder", a->freeze_decoder,
                "train the encoder only (with --init): the decoder and the convex/union weights "
                "stay as they are, so the encoder learns codes the decoder turns into the shapes");

@@ -247,5 +247,38 @@ TEST(BspModel, FrozenDecoderTrainsTheEncoderOnly) {
   EXPECT_GT((model.DecodePlanes(z, 1) - planes_before).cwiseAbs().maxCoeff(), 0.f);
 }
 
+TEST(BspModel, FrozenDecoderOnMuIsDeterministicAndHonoursTheLossDilation) {
+  BspModel base(TinyConfig(), 3);
+  const BspDataset data = TinyData();
+  base.Train(data, BspDataset(), TinyTraining(30, 10));
+  const std::string path = ::testing::TempDir() + "/bsp_frozen_base.pt";
+  base.Save(path, /*fp16=*/false);
+  BspTrainOptions opt = TinyTraining(0, 20);
+  opt.freeze_decoder = true;
+  opt.sample_latent = false;
+  auto run = [&](double dilation) {
+    BspModel m = BspModel::Load(path);
+    BspTrainOptions o = opt;
+    o.loss_dilation = dilation;
+    const auto logs = m.Train(data, BspDataset(), o);
+    double first = 0, last = 0;
+    for (int i = 0; i < 5; ++i) {
+      first += logs[i].recon_loss;
+      last += logs[logs.size() - 1 - i].recon_loss;
+    }
+    EXPECT_LT(last, first) << "dilation " << dilation;
+    return m.Encode(data.samples[1].grid, 0).first;
+  };
+  const Eigen::VectorXf a = run(0.0), b = run(0.0), c = run(0.3);
+  // Decoding mu (no sampling) with a frozen decoder: same seed, same encoder.
+  EXPECT_EQ((a - b).cwiseAbs().maxCoeff(), 0.f);
+  // The dilation enters the loss, so the encoder learns other codes.
+  EXPECT_GT((a - c).norm(), 1e-4f);
+  BspModel m = BspModel::Load(path);
+  opt.loss_dilation = -0.1;
+  EXPECT_THROW(m.Train(data, BspDataset(), opt), InvalidArgument);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace dimr::nn

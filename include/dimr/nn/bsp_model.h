@@ -59,6 +59,12 @@ struct BspTrainOptions {
   // into the shapes (amortised latent refinement). Weights of a frozen part are bit-identical
   // after training.
   bool freeze_decoder = false;
+  // Decode the sampled z = mu + eps * sigma (the VAE objective, default) or mu itself (the code
+  // that inference decodes; the KL term still regularises mu and sigma).
+  bool sample_latent = true;
+  // Move every plane outwards by this much in the reconstruction loss, as decoding with
+  // BspMeshOptions::dilation does (train for the decoding rule that is shipped); 0 = reference.
+  double loss_dilation = 0.0;
 };
 
 struct BspEpochLog {
