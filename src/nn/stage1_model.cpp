@@ -371,6 +371,38 @@ Stage1Model Stage1Model::Load(const std::string& path) {
   return model;
 }
 
+Stage1Model Stage1Model::Average(const std::vector<std::string>& paths) {
+  if (paths.empty()) throw InvalidArgument("stage1 average: no model files given");
+  Stage1Model mean = Load(paths[0]);
+  if (paths.size() == 1) return mean;
+  torch::NoGradGuard no_grad;
+  const std::string config = mean.config().ToString();
+  auto floating = [](const torch::nn::Module& m) {
+    std::vector<torch::Tensor> out;
+    for (const auto& p : m.parameters()) out.push_back(p);
+    for (const auto& b : m.buffers()) {
+      if (b.is_floating_point()) out.push_back(b);
+    }
+    return out;
+  };
+  std::vector<torch::Tensor> target = floating(*mean.impl_->net);  // written in place
+  std::vector<torch::Tensor> acc;                                  // double sums
+  for (const auto& t : target) acc.push_back(t.to(torch::kDouble));
+  for (std::size_t i = 1; i < paths.size(); ++i) {
+    const Stage1Model other = Load(paths[i]);
+    if (other.config().ToString() != config) {
+      throw InvalidArgument("stage1 average: '" + paths[i] + "' has configuration '" +
+                            other.config().ToString() + "', '" + paths[0] + "' has '" + config +
+                            "'");
+    }
+    const std::vector<torch::Tensor> t = floating(*other.impl_->net);
+    for (std::size_t k = 0; k < acc.size(); ++k) acc[k] += t[k].to(torch::kDouble);
+  }
+  const double n = static_cast<double>(paths.size());
+  for (std::size_t k = 0; k < acc.size(); ++k) target[k].copy_((acc[k] / n).to(target[k].dtype()));
+  return mean;
+}
+
 Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
   torch::NoGradGuard no_grad;
   const bool was_training = impl_->net->is_training();

@@ -865,10 +865,39 @@ void SetupBench(CLI::App& app) {
   });
 }
 
+// ---------------------------------------------------------------- average
+struct AverageArgs {
+  std::vector<std::string> models;
+  std::string out;
+  bool fp32 = false;
+};
+
+void SetupAverage(CLI::App& app) {
+  auto a = std::make_shared<AverageArgs>();
+  app.add_option("--models", a->models,
+                 "stage-1 weight files of one configuration (e.g. fine-tunes of one ancestor)")
+      ->required()
+      ->expected(1, -1);
+  app.add_option("--out", a->out, "averaged weights")->required();
+  app.add_flag("--fp32", a->fp32, "store float32 instead of float16");
+  app.callback([a]() {
+    const nn::Stage1Model mean = nn::Stage1Model::Average(a->models);
+    if (const auto dir = std::filesystem::path(a->out).parent_path(); !dir.empty()) {
+      std::filesystem::create_directories(dir);
+    }
+    mean.Save(a->out, !a->fp32);
+    std::printf("averaged %zu models (%s) -> %s, sha256 %s\n", a->models.size(),
+                mean.config().ToString().c_str(), a->out.c_str(), Sha256File(a->out).c_str());
+  });
+}
+
 const Registrar kTrain("train", "stage1", "Train the stage-1 point-wise network", &SetupTrain);
 const Registrar kEval("stage1", "eval",
                       "Stage-1 metrics: semantic mIoU (25 classes) and instance AP (8 CAD classes)",
                       &SetupEval);
+const Registrar kAverage(
+    "stage1", "average",
+    "Average the weights of stage-1 models (checkpoint averaging / model soup)", &SetupAverage);
 const Registrar kBench("bench", "stage1",
                        "Stage-1 inference time per room: voxelise / U-Net / heads / clustering",
                        &SetupBench);

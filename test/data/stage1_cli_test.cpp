@@ -137,6 +137,21 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
 
+  // Averaging a model with itself gives that model: same metrics (plain inference, no card).
+  std::tie(rc, out) = RunCli("stage1 average --models " + model + "/stage1.pt " + model +
+                             "/stage1.pt --out " + d + "/avg/avg.pt");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("averaged 2 models"), std::string::npos) << out;
+  std::tie(rc, out) = RunCli("stage1 eval --model " + d + "/avg/avg.pt --scans " + d +
+                             "/cache.bin --json " + d + "/eval_avg.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json ja = nlohmann::json::parse(ReadFileText(d + "/eval_avg.json"));
+  EXPECT_DOUBLE_EQ(ja["miou_present"].get<double>(), j["miou_present"].get<double>());
+  std::tie(rc, out) = RunCli("stage1 average --models " + model + "/stage1.pt " + d +
+                             "/nope.pt --out " + d + "/avg2.pt");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("nope.pt"), std::string::npos) << out;
+
   // Fine-tuning from the trained weights: the card records the source, the first logged loss
   // is that of the trained model (below the fresh run's first loss); a model of another
   // configuration is refused, naming both configurations.

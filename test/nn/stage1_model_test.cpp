@@ -267,6 +267,51 @@ TEST(Stage1Model, SaveLoadReproducesAndRejectsCorruptFiles) {
   fs::remove_all(dir);
 }
 
+TEST(Stage1Model, AverageIsTheMeanOfTheWeights) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "dimr_stage1_average_test";
+  fs::create_directories(dir);
+  const Stage1Sample s = TinyRoom(8);
+  const std::string a = (dir / "a.pt").string(), b = (dir / "b.pt").string(),
+                    m = (dir / "m.pt").string();
+  Stage1Model(TinyConfig(), 1).Save(a);
+  Stage1Model(TinyConfig(), 2).Save(b);
+  const std::vector<float> pa = Stage1Model::Load(a).Predict(s).semantic_prob;
+  const std::vector<float> pb = Stage1Model::Load(b).Predict(s).semantic_prob;
+  // One file, or a file with itself: that model.
+  EXPECT_EQ(Stage1Model::Average({a}).Predict(s).semantic_prob, pa);
+  EXPECT_EQ(Stage1Model::Average({a, a}).Predict(s).semantic_prob, pa);
+  // The mean m of a and b differs from both; the mean of a, b and m is m again (a sum without
+  // the division, or a copy of the first model, would not be).
+  const Stage1Model mean = Stage1Model::Average({a, b});
+  mean.Save(m);
+  const std::vector<float> pm = mean.Predict(s).semantic_prob;
+  const std::vector<float> pm3 = Stage1Model::Average({a, b, m}).Predict(s).semantic_prob;
+  double d_a = 0, d_b = 0, d_m = 0;
+  for (std::size_t i = 0; i < pm.size(); ++i) {
+    d_a = std::max(d_a, std::abs(double(pm[i]) - pa[i]));
+    d_b = std::max(d_b, std::abs(double(pm[i]) - pb[i]));
+    d_m = std::max(d_m, std::abs(double(pm[i]) - pm3[i]));
+  }
+  EXPECT_GT(d_a, 1e-3);
+  EXPECT_GT(d_b, 1e-3);
+  EXPECT_LT(d_m, 1e-5);
+  // Errors: nothing to average, another configuration (both named), a missing file.
+  EXPECT_THROW(Stage1Model::Average({}), InvalidArgument);
+  Stage1Config other = TinyConfig();
+  other.widths = {8, 16};
+  const std::string o = (dir / "other.pt").string();
+  Stage1Model(other).Save(o);
+  try {
+    Stage1Model::Average({a, o});
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("other.pt"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Stage1Model::Average({a, (dir / "missing.pt").string()}), ParseError);
+  fs::remove_all(dir);
+}
+
 TEST(Stage1Model, BadInputsGiveClearErrors) {
   Stage1Model model(TinyConfig());
   Stage1Sample empty;

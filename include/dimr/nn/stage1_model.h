@@ -116,6 +116,13 @@ class Stage1Model {
   void Save(const std::string& path, bool half = false) const;
   static Stage1Model Load(const std::string& path);
 
+  // Checkpoint averaging (a "model soup" of fine-tunes from one ancestor, or the last checkpoints
+  // of one run): loads every file and returns the element-wise mean of all parameters and
+  // floating buffers (BatchNorm running statistics); integer buffers come from the first file.
+  // Throws dimr::InvalidArgument for an empty list or files of different configurations
+  // (naming both), dimr::ParseError for an unreadable file.
+  static Stage1Model Average(const std::vector<std::string>& paths);
+
   // Trains on `train`. `log` is called every step; `on_epoch` every validate_every_epochs epochs
   // (and after the last) with the model in eval mode; the metrics it returns are printed with
   // the epoch (the caller logs them). Returns the step logs of this call.
