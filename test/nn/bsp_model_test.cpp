@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <fstream>
 #include <random>
+#include <utility>
+#include <vector>
 
 #include "dimr/geometry/error.h"
 
@@ -110,6 +112,16 @@ BspTrainOptions TinyTraining(int phase0, int phase1) {
   return opt;
 }
 
+// Mean reconstruction loss of the first and of the last five epochs of a run.
+std::pair<double, double> FirstAndLastLoss(const std::vector<BspEpochLog>& logs) {
+  double first = 0, last = 0;
+  for (int i = 0; i < 5; ++i) {
+    first += logs[i].recon_loss;
+    last += logs[logs.size() - 1 - i].recon_loss;
+  }
+  return {first / 5, last / 5};
+}
+
 TEST(BspModel, TinyTrainingLowersTheLoss) {
   BspModel model(TinyConfig(), 3);
   const BspTrainOptions opt = TinyTraining(40, 0);
@@ -117,12 +129,8 @@ TEST(BspModel, TinyTrainingLowersTheLoss) {
   const auto logs = model.Train(data, BspDataset(), opt);
   ASSERT_EQ(logs.size(), 40u);
   // Average of the first and last 5 epochs: the reconstruction loss must drop clearly.
-  double first = 0, last = 0;
-  for (int i = 0; i < 5; ++i) {
-    first += logs[i].recon_loss;
-    last += logs[logs.size() - 1 - i].recon_loss;
-  }
-  EXPECT_LT(last, 0.7 * first) << "first " << first / 5 << " last " << last / 5;
+  const auto [first, last] = FirstAndLastLoss(logs);
+  EXPECT_LT(last, 0.7 * first) << "first " << first << " last " << last;
 }
 
 TEST(BspModel, SaveLoadRoundTripAndCorruptFiles) {
@@ -231,12 +239,8 @@ TEST(BspModel, FrozenDecoderTrainsTheEncoderOnly) {
   opt.seed = 11;
   const auto logs = model.Train(data, BspDataset(), opt);
   ASSERT_EQ(logs.size(), 30u);
-  double first = 0, last = 0;
-  for (int i = 0; i < 5; ++i) {
-    first += logs[i].recon_loss;
-    last += logs[logs.size() - 1 - i].recon_loss;
-  }
-  EXPECT_LT(last, 0.95 * first) << "first " << first / 5 << " last " << last / 5;
+  const auto [first, last] = FirstAndLastLoss(logs);
+  EXPECT_LT(last, 0.95 * first) << "first " << first << " last " << last;
   // Decoder (weights and BatchNorm statistics) and convex/union weights bit-identical.
   EXPECT_EQ((model.DecodePlanes(z, 1) - planes_before).cwiseAbs().maxCoeff(), 0.f);
   EXPECT_EQ(model.ConvexPlanes(), convexes_before);
@@ -261,11 +265,7 @@ TEST(BspModel, FrozenDecoderOnMuIsDeterministicAndHonoursTheLossDilation) {
     BspTrainOptions o = opt;
     o.loss_dilation = dilation;
     const auto logs = m.Train(data, BspDataset(), o);
-    double first = 0, last = 0;
-    for (int i = 0; i < 5; ++i) {
-      first += logs[i].recon_loss;
-      last += logs[logs.size() - 1 - i].recon_loss;
-    }
+    const auto [first, last] = FirstAndLastLoss(logs);
     EXPECT_LT(last, first) << "dilation " << dilation;
     return m.Encode(data.samples[1].grid, 0).first;
   };
