@@ -33,6 +33,12 @@ void Stage1InstanceConfig::Validate() const {
     throw InvalidArgument("Stage1InstanceConfig.min_points: must be >= 0, got " +
                           std::to_string(min_points));
   }
+  for (std::size_t c = 0; c < class_bias.size(); ++c) {
+    if (!std::isfinite(class_bias[c])) {
+      throw InvalidArgument("Stage1InstanceConfig.class_bias: value of class " + std::to_string(c) +
+                            " is not finite");
+    }
+  }
 }
 
 std::vector<ScoredInstance> ExtractStage1Instances(
@@ -98,6 +104,12 @@ void SemanticVoteConfig::Validate() const {
     throw InvalidArgument("SemanticVoteConfig.min_points: must be >= 1, got " +
                           std::to_string(min_points));
   }
+  for (int c : excluded_classes) {
+    if (c < 0) {
+      throw InvalidArgument("SemanticVoteConfig.excluded_classes: class " + std::to_string(c) +
+                            " is negative");
+    }
+  }
 }
 
 std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
@@ -119,6 +131,14 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   check("offsets", offsets.size(), n);
   check("semantic", semantic.size(), n);
   check("semantic_prob", semantic_prob.size(), n * num_classes);
+  std::vector<bool> votes = is_thing;
+  for (int c : config.excluded_classes) {
+    if (static_cast<std::size_t>(c) >= num_classes) {
+      throw InvalidArgument("VoteSemantics: excluded class " + std::to_string(c) +
+                            " is not in [0, " + std::to_string(num_classes) + ")");
+    }
+    votes[c] = false;
+  }
   std::vector<int> thing_label(n, -1);
   std::vector<Eigen::Vector3f> shifted(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -129,7 +149,7 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
                             std::to_string(num_classes) + ")");
     }
     shifted[i] = points[i] + offsets[i];
-    if (is_thing[c]) thing_label[i] = 0;
+    if (votes[c]) thing_label[i] = 0;
   }
   std::vector<int> out = semantic;
   if (config.radius == 0.0) return out;
@@ -145,7 +165,7 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
           throw InvalidArgument("VoteSemantics: semantic_prob of point " + std::to_string(i) +
                                 " is not finite");
         }
-        if (is_thing[c]) sum[c] += row[c];
+        if (votes[c]) sum[c] += row[c];
       }
     }
     const int best = static_cast<int>(std::max_element(sum.begin(), sum.end()) - sum.begin());

@@ -1,4 +1,5 @@
-// Stage-1 commands: `dimr train stage1`, `dimr stage1 eval`, `dimr bench stage1`.
+// Stage-1 commands: `dimr train stage1`, `dimr stage1 eval / calibrate / average`,
+// `dimr bench stage1`.
 // Torch-free: the network lives behind nn/stage1_model.h, clustering in pipeline.
 #if defined(DIMR_HAVE_NN) && defined(DIMR_HAVE_PIPELINE)
 #include <algorithm>
@@ -20,6 +21,7 @@
 #include "dimr/eval/seg_metrics.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_model.h"
+#include "dimr/pipeline/class_bias.h"
 #include "dimr/pipeline/stage1_instances.h"
 #include "tools/command_registry.h"
 #include "tools/model_card.h"
@@ -111,6 +113,10 @@ SceneInference InferScene(const nn::Stage1Model& model, const nn::Stage1Sample& 
   SceneInference r;
   const auto t0 = Clock::now();
   r.out = model.PredictAugmented(s, rotations, mirror, false, &r.timing);
+  if (!cfg.class_bias.empty()) {
+    r.out.semantic = pipeline::ApplyClassBias(cfg.class_bias, &r.out.semantic_prob,
+                                              static_cast<int>(rfs_to_cad.size()));
+  }
   const auto t1 = Clock::now();
   if (cfg.semantic_vote.radius > 0) {
     r.out.semantic = pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic,
@@ -572,22 +578,92 @@ std::vector<pipeline::ClusterPass> ParsePasses(const std::string& text) {
   return passes;
 }
 
+std::string BiasToString(const std::vector<float>& bias) {
+  std::string r;
+  for (float b : bias) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%.2f", b);
+    r += (r.empty() ? "" : ",") + std::string(std::string(buf) == "-0.00" ? "0.00" : buf);
+  }
+  return r;
+}
+
+// "none" / "" = no bias, else exactly kStage1Classes comma-separated finite numbers. Throws
+// dimr::InvalidArgument naming the bad item.
+std::vector<float> ParseClassBias(const std::string& text) {
+  if (text.empty() || text == "none") return {};
+  std::vector<float> r;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) {
+    std::size_t used = 0;
+    float v = 0;
+    try {
+      v = std::stof(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != item.size() || !std::isfinite(v)) {
+      throw InvalidArgument("class_bias: '" + item + "' is not a finite number");
+    }
+    r.push_back(v);
+  }
+  if (r.size() != static_cast<std::size_t>(nn::kStage1Classes)) {
+    throw InvalidArgument("class_bias: " + std::to_string(r.size()) + " values, expected " +
+                          std::to_string(nn::kStage1Classes) + " (one per class) or 'none'");
+  }
+  return r;
+}
+
+std::string ClassListToString(const std::vector<int>& classes) {
+  std::string r;
+  for (int c : classes) r += (r.empty() ? "" : ",") + std::string(data::RfsClassNames()[c]);
+  return r;
+}
+
+// "none" / "" = no class, else comma-separated RFS class names (sorted by id on return).
+// Throws dimr::InvalidArgument naming an unknown name.
+std::vector<int> ParseClassList(const std::string& text) {
+  if (text.empty() || text == "none") return {};
+  std::vector<int> r;
+  std::stringstream in(text);
+  std::string item;
+  const auto& names = data::RfsClassNames();
+  while (std::getline(in, item, ',')) {
+    const auto it =
+        std::find_if(names.begin(), names.end(), [&](const char* n) { return item == n; });
+    if (it == names.end()) {
+      throw InvalidArgument("vote_exclude: '" + item + "' is not an RFS class name");
+    }
+    r.push_back(static_cast<int>(it - names.begin()));
+  }
+  std::sort(r.begin(), r.end());
+  r.erase(std::unique(r.begin(), r.end()), r.end());
+  return r;
+}
+
 // Inference settings of `dimr stage1 eval`: clustering passes, test-time augmentation and the
 // instance-guided semantic vote. A model card may recommend them in one line,
 //   recommended_inference: "passes=s0.12,s0.2,s0.3 rotations=6 mirror=1 vote_radius=0.05"
-// (keys optional; vote_min_points too); flags given on the command line override it.
+// (keys optional; vote_min_points, class_bias=b0,...,b24 and vote_exclude=picture,display too,
+// the last two written by `dimr stage1 calibrate`); flags given on the command line override
+// it.
 struct Stage1Inference {
   std::string passes;  // empty = the reference's o0.03,s0.01,s0.03,s0.05
   int rotations = 1;
   bool mirror = false;
   double vote_radius = 0;
   int vote_min_points = 20;
+  std::vector<float> class_bias;  // empty = none
+  std::vector<int> vote_exclude;  // RFS classes kept out of the semantic vote
 
   std::string ToString() const {
     std::ostringstream o;
     if (!passes.empty()) o << "passes=" << passes << " ";
     o << "rotations=" << rotations << " mirror=" << (mirror ? 1 : 0)
       << " vote_radius=" << vote_radius << " vote_min_points=" << vote_min_points;
+    if (!class_bias.empty()) o << " class_bias=" << BiasToString(class_bias);
+    if (!vote_exclude.empty()) o << " vote_exclude=" << ClassListToString(vote_exclude);
     return o.str();
   }
 };
@@ -624,8 +700,21 @@ Stage1Inference ParseStage1Inference(const std::string& text, const std::string&
         r.vote_radius = std::stod(value, &used);
       } else if (key == "vote_min_points") {
         r.vote_min_points = std::stoi(value, &used);
+      } else if (key == "class_bias" || key == "vote_exclude") {
+        try {
+          if (key == "class_bias") {
+            r.class_bias = ParseClassBias(value);
+          } else {
+            r.vote_exclude = ParseClassList(value);
+          }
+        } catch (const InvalidArgument& e) {
+          throw bad(e.what());
+        }
+        continue;
       } else {
-        throw bad("unknown key (passes, rotations, mirror, vote_radius, vote_min_points)");
+        throw bad(
+            "unknown key (passes, rotations, mirror, vote_radius, vote_min_points, class_bias, "
+            "vote_exclude)");
       }
       if (used != value.size()) throw bad("trailing text");
     } catch (const ParseError&) {
@@ -642,35 +731,53 @@ struct EvalArgs {
   int limit = 0, render = 0, threads = 2;
   double nms = 0.3;
   int min_points = 100;
-  Stage1Inference flags;  // the values of the flags below, applied where given
+  Stage1Inference flags;                 // the values of the flags below, applied where given
+  std::string class_bias, vote_exclude;  // --class-bias, --vote-exclude text
   CLI::Option *passes = nullptr, *rotations = nullptr, *mirror = nullptr, *vote_radius = nullptr,
-              *vote_min_points = nullptr;
+              *vote_min_points = nullptr, *class_bias_opt = nullptr, *vote_exclude_opt = nullptr;
 };
 
-void RunEval(const EvalArgs& a) {
-  const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
+// The model card's recommended_inference overridden by the flags given; `source` names where
+// the settings came from.
+Stage1Inference ResolveInference(const EvalArgs& a, std::string* source) {
   Stage1Inference inf;
-  std::string source = "defaults (reference passes, no test-time augmentation)";
+  *source = "defaults (reference passes, no test-time augmentation)";
   if (const auto card = ReadModelCardValue(a.model, "recommended_inference")) {
     inf = ParseStage1Inference(*card, ModelCardPath(a.model));
-    source = ModelCardPath(a.model);
+    *source = ModelCardPath(a.model);
   }
   if (a.passes->count()) inf.passes = a.flags.passes;
   if (a.rotations->count()) inf.rotations = a.flags.rotations;
   if (a.mirror->count()) inf.mirror = a.flags.mirror;
   if (a.vote_radius->count()) inf.vote_radius = a.flags.vote_radius;
   if (a.vote_min_points->count()) inf.vote_min_points = a.flags.vote_min_points;
+  if (a.class_bias_opt->count()) inf.class_bias = ParseClassBias(a.class_bias);
+  if (a.vote_exclude_opt->count()) inf.vote_exclude = ParseClassList(a.vote_exclude);
   if (inf.rotations < 1 || nn::kHeadingBins % inf.rotations != 0) {
     throw InvalidArgument("--rotations must be 1, 2, 3, 4, 6 or 12, got " +
                           std::to_string(inf.rotations));
   }
+  return inf;
+}
+
+pipeline::Stage1InstanceConfig InstanceConfig(const EvalArgs& a, const Stage1Inference& inf) {
   pipeline::Stage1InstanceConfig cfg;
   cfg.nms_iou = a.nms;
   cfg.min_points = a.min_points;
   cfg.semantic_vote.radius = inf.vote_radius;
   cfg.semantic_vote.min_points = inf.vote_min_points;
+  cfg.class_bias = inf.class_bias;
+  cfg.semantic_vote.excluded_classes = inf.vote_exclude;
   if (!inf.passes.empty()) cfg.clustering.passes = ParsePasses(inf.passes);
   cfg.Validate();
+  return cfg;
+}
+
+void RunEval(const EvalArgs& a) {
+  const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
+  std::string source;
+  const Stage1Inference inf = ResolveInference(a, &source);
+  const pipeline::Stage1InstanceConfig cfg = InstanceConfig(a, inf);
   auto scenes = LoadScenes(a.scans, a.limit, a.threads);
   std::printf("model %s (%s), %zu scenes\n", a.model.c_str(), model.config().ToString().c_str(),
               scenes.size());
@@ -694,6 +801,8 @@ void RunEval(const EvalArgs& a) {
     j["mirror"] = inf.mirror;
     j["vote_radius"] = inf.vote_radius;
     j["vote_min_points"] = inf.vote_min_points;
+    j["class_bias"] = inf.class_bias;
+    j["vote_exclude"] = ClassListToString(inf.vote_exclude);
     f << j.dump(2) << "\n";
   }
   if (a.render > 0) {
@@ -707,8 +816,8 @@ void RunEval(const EvalArgs& a) {
   }
 }
 
-void SetupEval(CLI::App& app) {
-  auto a = std::make_shared<EvalArgs>();
+// The flags `dimr stage1 eval` and `dimr stage1 calibrate` share.
+void AddInferenceFlags(CLI::App& app, const std::shared_ptr<EvalArgs>& a) {
   app.add_option("--model", a->model, "stage-1 weights (dimr train stage1)");
   app.add_option("--scans", a->scans, "scenes: scans folder or `dimr stage1 prepare` cache")
       ->required();
@@ -735,10 +844,165 @@ void SetupEval(CLI::App& app) {
       "--vote-min-points", a->flags.vote_min_points,
       "smallest cluster that votes (smaller ones keep per-point labels); default: the card's, "
       "else 20");
+  a->class_bias_opt = app.add_option(
+      "--class-bias", a->class_bias,
+      "per-class prior correction: 25 comma-separated log offsets added to the network's "
+      "log-probabilities (dimr stage1 calibrate fits them), or 'none'; default: the card's");
+  a->vote_exclude_opt = app.add_option(
+      "--vote-exclude", a->vote_exclude,
+      "RFS classes kept out of the semantic vote (comma-separated names, e.g. picture,display), "
+      "or 'none'; default: the card's");
+}
+
+void SetupEval(CLI::App& app) {
+  auto a = std::make_shared<EvalArgs>();
+  AddInferenceFlags(app, a);
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
   app.callback([a]() { RunEval(*a); });
+}
+
+// ---------------------------------------------------------------- calibrate
+struct CalibrateArgs {
+  std::shared_ptr<EvalArgs> eval = std::make_shared<EvalArgs>();
+  pipeline::ClassBiasFitOptions fit;
+  bool choose_vote_exclude = true;
+  std::string json;
+};
+
+// Mean IoU (classes present) of the scenes' labels after bias + the semantic vote.
+double VotedMiou(const std::vector<nn::Stage1Sample>& scenes,
+                 const std::vector<nn::Stage1Output>& outs, const std::vector<float>& bias,
+                 const pipeline::SemanticVoteConfig& vote, std::vector<double>* per_class) {
+  static const std::vector<bool> is_thing = ThingClasses();
+  std::vector<int> gt, pred;
+  for (std::size_t k = 0; k < scenes.size(); ++k) {
+    std::vector<float> prob = outs[k].semantic_prob;
+    std::vector<int> sem = pipeline::ApplyClassBias(bias, &prob, nn::kStage1Classes);
+    if (vote.radius > 0) {
+      sem = pipeline::VoteSemantics(scenes[k].points, outs[k].offsets, sem, prob, is_thing, vote);
+    }
+    gt.insert(gt.end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
+    pred.insert(pred.end(), sem.begin(), sem.end());
+  }
+  return pipeline::MeanIouPresent(gt, pred, nn::kStage1Classes, per_class);
+}
+
+void RunCalibrate(const CalibrateArgs& c) {
+  const EvalArgs& a = *c.eval;
+  const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
+  std::string source;
+  Stage1Inference inf = ResolveInference(a, &source);
+  const pipeline::Stage1InstanceConfig cfg = InstanceConfig(a, inf);
+  const auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  std::printf("model %s, %zu scenes; inference %s (from %s and the flags)\n", a.model.c_str(),
+              scenes.size(), inf.ToString().c_str(), source.c_str());
+  const auto t0 = Clock::now();
+  std::vector<nn::Stage1Output> outs;
+  std::vector<int> labels;
+  std::vector<float> prob;
+  for (const auto& s : scenes) {
+    outs.push_back(model.PredictAugmented(s, inf.rotations, inf.mirror));
+    labels.insert(labels.end(), s.semantic.begin(), s.semantic.end());
+    prob.insert(prob.end(), outs.back().semantic_prob.begin(), outs.back().semantic_prob.end());
+  }
+  const auto t1 = Clock::now();
+  const pipeline::ClassBiasFit fit =
+      pipeline::FitClassBias(labels, prob, nn::kStage1Classes, c.fit);
+  const auto t2 = Clock::now();
+  // The vote as configured (card / flags), without and with the bias.
+  std::vector<double> voted_before, voted_after;
+  pipeline::SemanticVoteConfig vote = cfg.semantic_vote;
+  const double mv_before = VotedMiou(scenes, outs, {}, vote, &voted_before);
+  double mv_after = VotedMiou(scenes, outs, fit.bias, vote, &voted_after);
+  const double mv_configured = mv_after;
+  // Then which thing classes should stay out of the vote: greedy toggles, kept when the voted
+  // mIoU rises by more than 1e-4 (a vote merges small objects into their larger neighbours).
+  if (vote.radius > 0 && c.choose_vote_exclude) {
+    const std::vector<bool> is_thing = ThingClasses();
+    for (int round = 0; round < 3; ++round) {
+      bool changed = false;
+      for (int k = 0; k < nn::kStage1Classes; ++k) {
+        if (!is_thing[k] || std::isnan(fit.iou_before[k])) continue;
+        pipeline::SemanticVoteConfig trial = vote;
+        auto& ex = trial.excluded_classes;
+        const auto it = std::find(ex.begin(), ex.end(), k);
+        if (it == ex.end()) {
+          ex.push_back(k);
+        } else {
+          ex.erase(it);
+        }
+        std::sort(ex.begin(), ex.end());
+        std::vector<double> per;
+        const double m = VotedMiou(scenes, outs, fit.bias, trial, &per);
+        if (m > mv_after + 1e-4) {
+          vote = trial;
+          mv_after = m;
+          voted_after = per;
+          changed = true;
+        }
+      }
+      if (!changed) break;
+    }
+  }
+  std::printf("network %.1f s, fit %.1f s (%d sweeps, grid [%g, %g] step %g)\n", Seconds(t0, t1),
+              Seconds(t1, t2), fit.sweeps, c.fit.min_bias, c.fit.max_bias, c.fit.step);
+  std::printf(
+      "\n| RFS class | bias | IoU argmax | with bias | IoU + vote | with bias |\n"
+      "|---|---|---|---|---|---|\n");
+  const auto& names = data::RfsClassNames();
+  for (int k = 0; k < nn::kStage1Classes; ++k) {
+    if (std::isnan(fit.iou_before[k]) && fit.bias[k] == 0.0f) continue;
+    std::printf("| %s | %.2f | %s | %s | %s | %s |\n", names[k], fit.bias[k],
+                Fmt(fit.iou_before[k]).c_str(), Fmt(fit.iou_after[k]).c_str(),
+                Fmt(voted_before[k]).c_str(), Fmt(voted_after[k]).c_str());
+  }
+  std::printf(
+      "\nmIoU (classes present): argmax %.4f -> %.4f with the bias; with the vote %.4f -> "
+      "%.4f with the bias -> %.4f with the bias and vote_exclude=%s\n",
+      fit.miou_before, fit.miou_after, mv_before, mv_configured, mv_after,
+      vote.excluded_classes.empty() ? "none" : ClassListToString(vote.excluded_classes).c_str());
+  inf.class_bias = fit.bias;
+  inf.vote_exclude = vote.excluded_classes;
+  std::printf("model card line:\nrecommended_inference: \"%s\"\n", inf.ToString().c_str());
+  if (!c.json.empty()) {
+    nlohmann::json j;
+    auto num = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
+    j["model"] = a.model;
+    j["scans"] = a.scans;
+    j["scenes"] = scenes.size();
+    j["class_bias"] = fit.bias;
+    j["miou_argmax"] = {{"before", fit.miou_before}, {"after", fit.miou_after}};
+    j["miou_vote"] = {{"before", mv_before}, {"with_bias", mv_configured}, {"after", mv_after}};
+    j["vote_exclude"] = ClassListToString(vote.excluded_classes);
+    nlohmann::json per = nlohmann::json::object();
+    for (int k = 0; k < nn::kStage1Classes; ++k) {
+      per[names[k]] = {{"bias", fit.bias[k]},
+                       {"iou_before", num(fit.iou_before[k])},
+                       {"iou_after", num(fit.iou_after[k])},
+                       {"iou_vote_before", num(voted_before[k])},
+                       {"iou_vote_after", num(voted_after[k])}};
+    }
+    j["per_class"] = per;
+    j["recommended_inference"] = inf.ToString();
+    std::ofstream f(c.json);
+    if (!f) throw Error("cannot write '" + c.json + "'");
+    f << j.dump(2) << "\n";
+  }
+}
+
+void SetupCalibrate(CLI::App& app) {
+  auto c = std::make_shared<CalibrateArgs>();
+  AddInferenceFlags(app, c->eval);
+  app.add_option("--min-bias", c->fit.min_bias, "search grid: smallest bias (log units, <= 0)");
+  app.add_option("--max-bias", c->fit.max_bias, "search grid: largest bias (>= 0)");
+  app.add_option("--step", c->fit.step, "search grid step");
+  app.add_option("--sweeps", c->fit.max_sweeps, "coordinate-ascent sweeps at most");
+  app.add_flag("!--keep-vote-exclude", c->choose_vote_exclude,
+               "keep the card's / --vote-exclude's classes instead of choosing them greedily");
+  app.add_option("--json", c->json, "write the fitted bias and the IoUs as JSON");
+  app.callback([c]() { RunCalibrate(*c); });
 }
 
 // ---------------------------------------------------------------- bench
@@ -895,6 +1159,11 @@ const Registrar kTrain("train", "stage1", "Train the stage-1 point-wise network"
 const Registrar kEval("stage1", "eval",
                       "Stage-1 metrics: semantic mIoU (25 classes) and instance AP (8 CAD classes)",
                       &SetupEval);
+const Registrar kCalibrate(
+    "stage1", "calibrate",
+    "Fit per-class prior corrections (log offsets) that maximise the semantic mIoU on labelled "
+    "scenes (validation); prints the model-card line",
+    &SetupCalibrate);
 const Registrar kAverage(
     "stage1", "average",
     "Average the weights of stage-1 models (checkpoint averaging / model soup)", &SetupAverage);

@@ -137,6 +137,41 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
 
+  // Calibration: the fitted class bias never lowers the mIoU, and `stage1 eval` with the
+  // printed bias and vote exclusions reproduces exactly the mIoU calibrate reports.
+  std::tie(rc, out) = RunCli("stage1 calibrate --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --step 0.25 --json " + d + "/calib.json");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("recommended_inference: \"passes=s0.12,s0.2 rotations=2"), std::string::npos)
+      << out;
+  const nlohmann::json jk = nlohmann::json::parse(ReadFileText(d + "/calib.json"));
+  ASSERT_EQ(jk["class_bias"].size(), 25u);
+  EXPECT_GE(jk["miou_argmax"]["after"].get<double>(), jk["miou_argmax"]["before"].get<double>());
+  EXPECT_GE(jk["miou_vote"]["after"].get<double>(), jk["miou_vote"]["with_bias"].get<double>());
+  std::string bias;
+  for (const auto& v : jk["class_bias"]) {
+    char buf[32];
+    std::snprintf(buf, sizeof(buf), "%s%.2f", bias.empty() ? "" : ",", v.get<double>());
+    bias += buf;
+  }
+  std::string exclude = jk["vote_exclude"].get<std::string>();
+  if (exclude.empty()) exclude = "none";
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --class-bias " + bias + " --vote-exclude " + exclude +
+                             " --json " + d + "/eval_bias.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json jb = nlohmann::json::parse(ReadFileText(d + "/eval_bias.json"));
+  EXPECT_NEAR(jb["miou_present"].get<double>(), jk["miou_vote"]["after"].get<double>(), 1e-9);
+  EXPECT_NEAR(jc["miou_present"].get<double>(), jk["miou_vote"]["before"].get<double>(), 1e-9);
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --class-bias 0.1,0.2");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("class_bias: 2 values, expected 25"), std::string::npos) << out;
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --vote-exclude picture,sofa2");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("'sofa2' is not an RFS class name"), std::string::npos) << out;
+
   // Averaging a model with itself gives that model: same metrics (plain inference, no card).
   std::tie(rc, out) = RunCli("stage1 average --models " + model + "/stage1.pt " + model +
                              "/stage1.pt --out " + d + "/avg/avg.pt");

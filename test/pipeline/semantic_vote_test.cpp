@@ -76,6 +76,20 @@ TEST(VoteSemantics, ClustersTakeTheClassWithTheLargestSummedProbability) {
   const std::vector<int> merged =
       VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg);
   for (int i = 0; i < 18; ++i) EXPECT_EQ(merged[i], 3) << i;
+  // Class 3 kept out of the vote: B's class-3 points keep their label and do not vote, class 3
+  // cannot win, so the merged cluster (A + B's class-1 point) takes class 2
+  // (2: 5.7 + 0.1 = 5.8, 1: 2.6 + 0.7 = 3.3).
+  cfg.excluded_classes = {3};
+  const std::vector<int> excl =
+      VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg);
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(excl[i], 2) << i;
+  for (int i = 10; i < 17; ++i) EXPECT_EQ(excl[i], 3) << i;
+  EXPECT_EQ(excl[17], 2);
+  cfg.excluded_classes = {4};  // outside [0, C)
+  EXPECT_THROW(VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg),
+               InvalidArgument);
+  cfg.excluded_classes = {-1};
+  EXPECT_THROW(cfg.Validate(), InvalidArgument);
 }
 
 TEST(VoteSemantics, BadInputsGiveClearErrors) {

@@ -16,8 +16,12 @@ namespace dimr::pipeline {
 struct SemanticVoteConfig {
   double radius = 0.0;  // BFS radius on the shifted points, metres; 0 = no vote
   int min_points = 20;  // smaller clusters keep their per-point labels (>= 1)
+  // Thing classes kept out of the vote: their points neither join a cluster nor change, and no
+  // cluster is given them (e.g. small wall-mounted or table-top objects whose clusters merge
+  // with their larger neighbours).
+  std::vector<int> excluded_classes;
   // Throws dimr::InvalidArgument naming the bad field (radius negative or not finite,
-  // min_points < 1).
+  // min_points < 1, a negative excluded class).
   void Validate() const;
 };
 
@@ -28,6 +32,9 @@ struct Stage1InstanceConfig {
   // Instance-guided semantic vote (VoteSemantics below) applied by the stage-1 evaluation
   // before clustering; radius 0 = off.
   SemanticVoteConfig semantic_vote;
+  // Per-class prior correction (pipeline/class_bias.h) applied to the network's probabilities
+  // before the vote and the clustering: C natural-log offsets, empty = none.
+  std::vector<float> class_bias;
   // Throws dimr::InvalidArgument naming the bad field.
   void Validate() const;
 };
@@ -58,7 +65,8 @@ std::vector<ScoredInstance> ExtractStage1Instances(
 namespace dimr::pipeline {
 
 // Instance-guided semantic refinement: the points whose argmax class is a "thing" class
-// (is_thing[c], e.g. everything but wall and floor) are clustered class-agnostically by BFS on
+// (is_thing[c], e.g. everything but wall and floor, less config.excluded_classes) are
+// clustered class-agnostically by BFS on
 // points + offsets with `config.radius`; every cluster of >= min_points points takes the
 // class with the largest summed probability over its points (thing classes only) and all its
 // points get that class. Stuff points and small clusters keep their labels. semantic: N argmax
