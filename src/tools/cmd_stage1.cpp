@@ -868,48 +868,132 @@ struct CalibrateArgs {
   std::shared_ptr<EvalArgs> eval = std::make_shared<EvalArgs>();
   pipeline::ClassBiasFitOptions fit;
   bool choose_vote_exclude = true;
+  int folds = 2;        // cross-validation folds choosing the shrink factor (0 = use `shrink`)
+  double shrink = 1.0;  // factor on the fitted bias when folds = 0
+  std::vector<double> shrinks{0.0, 0.25, 0.5, 0.75, 1.0};
   std::string json;
 };
 
-// Mean IoU (classes present) of the scenes' labels after bias + the semantic vote.
-double VotedMiou(const std::vector<nn::Stage1Sample>& scenes,
-                 const std::vector<nn::Stage1Output>& outs, const std::vector<float>& bias,
-                 const pipeline::SemanticVoteConfig& vote, std::vector<double>* per_class) {
+// Labels and predictions (bias, then the semantic vote) of the scenes `idx`, appended.
+void VotedLabels(const std::vector<nn::Stage1Sample>& scenes,
+                 const std::vector<nn::Stage1Output>& outs, const std::vector<int>& idx,
+                 const std::vector<float>& bias, const pipeline::SemanticVoteConfig& vote,
+                 std::vector<int>* gt, std::vector<int>* pred) {
   static const std::vector<bool> is_thing = ThingClasses();
-  std::vector<int> gt, pred;
-  for (std::size_t k = 0; k < scenes.size(); ++k) {
+  for (int k : idx) {
     std::vector<float> prob = outs[k].semantic_prob;
     std::vector<int> sem = pipeline::ApplyClassBias(bias, &prob, nn::kStage1Classes);
     if (vote.radius > 0) {
       sem = pipeline::VoteSemantics(scenes[k].points, outs[k].offsets, sem, prob, is_thing, vote);
     }
-    gt.insert(gt.end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
-    pred.insert(pred.end(), sem.begin(), sem.end());
+    gt->insert(gt->end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
+    pred->insert(pred->end(), sem.begin(), sem.end());
   }
+}
+
+std::vector<int> AllScenes(std::size_t n) {
+  std::vector<int> idx(n);
+  std::iota(idx.begin(), idx.end(), 0);
+  return idx;
+}
+
+// Mean IoU (classes present) of all scenes after bias + the semantic vote.
+double VotedMiou(const std::vector<nn::Stage1Sample>& scenes,
+                 const std::vector<nn::Stage1Output>& outs, const std::vector<float>& bias,
+                 const pipeline::SemanticVoteConfig& vote, std::vector<double>* per_class) {
+  std::vector<int> gt, pred;
+  VotedLabels(scenes, outs, AllScenes(scenes.size()), bias, vote, &gt, &pred);
   return pipeline::MeanIouPresent(gt, pred, nn::kStage1Classes, per_class);
+}
+
+// Fits the bias on the scenes `idx` (biased argmax, no vote).
+pipeline::ClassBiasFit FitOn(const std::vector<nn::Stage1Sample>& scenes,
+                             const std::vector<nn::Stage1Output>& outs, const std::vector<int>& idx,
+                             const pipeline::ClassBiasFitOptions& options) {
+  std::vector<int> labels;
+  std::vector<float> prob;
+  for (int k : idx) {
+    labels.insert(labels.end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
+    prob.insert(prob.end(), outs[k].semantic_prob.begin(), outs[k].semantic_prob.end());
+  }
+  return pipeline::FitClassBias(labels, prob, nn::kStage1Classes, options);
+}
+
+std::vector<float> Scaled(std::vector<float> bias, double factor) {
+  for (float& b : bias) b = static_cast<float>(std::round(b * factor / 0.05) * 0.05);
+  return bias;
 }
 
 void RunCalibrate(const CalibrateArgs& c) {
   const EvalArgs& a = *c.eval;
+  if (c.folds == 1 || c.folds < 0) throw InvalidArgument("--folds must be 0 or >= 2");
+  for (double f : c.shrinks) {
+    if (!(f >= 0.0 && f <= 1.0)) {
+      throw InvalidArgument("--shrinks: " + std::to_string(f) + " is not in [0, 1]");
+    }
+  }
   const nn::Stage1Model model = nn::Stage1Model::Load(a.model);
   std::string source;
   Stage1Inference inf = ResolveInference(a, &source);
   const pipeline::Stage1InstanceConfig cfg = InstanceConfig(a, inf);
   const auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  if (c.folds > static_cast<int>(scenes.size())) {
+    throw InvalidArgument("--folds " + std::to_string(c.folds) + " exceeds the " +
+                          std::to_string(scenes.size()) + " scenes");
+  }
   std::printf("model %s, %zu scenes; inference %s (from %s and the flags)\n", a.model.c_str(),
               scenes.size(), inf.ToString().c_str(), source.c_str());
   const auto t0 = Clock::now();
   std::vector<nn::Stage1Output> outs;
-  std::vector<int> labels;
-  std::vector<float> prob;
-  for (const auto& s : scenes) {
-    outs.push_back(model.PredictAugmented(s, inf.rotations, inf.mirror));
-    labels.insert(labels.end(), s.semantic.begin(), s.semantic.end());
-    prob.insert(prob.end(), outs.back().semantic_prob.begin(), outs.back().semantic_prob.end());
-  }
+  for (const auto& s : scenes) outs.push_back(model.PredictAugmented(s, inf.rotations, inf.mirror));
   const auto t1 = Clock::now();
-  const pipeline::ClassBiasFit fit =
-      pipeline::FitClassBias(labels, prob, nn::kStage1Classes, c.fit);
+  // Shrinkage of the fitted bias towards 0, chosen by cross-validation over scenes (fold k holds
+  // the scenes i with i % folds == k): each fold's bias is fitted on the other folds, and the
+  // held-out predictions of all folds (bias x factor, the configured vote) are pooled into one
+  // mIoU per factor. A fit on few rooms over-corrects; the factor says by how much.
+  double shrink = c.shrink;
+  std::vector<std::pair<double, double>> cv;  // factor, pooled held-out mIoU
+  if (c.folds >= 2) {
+    std::vector<std::vector<int>> gt(c.shrinks.size()), pred(c.shrinks.size());
+    for (int f = 0; f < c.folds; ++f) {
+      std::vector<int> train, held;
+      for (int k = 0; k < static_cast<int>(scenes.size()); ++k) {
+        (k % c.folds == f ? held : train).push_back(k);
+      }
+      const pipeline::ClassBiasFit fold_fit = FitOn(scenes, outs, train, c.fit);
+      for (std::size_t s = 0; s < c.shrinks.size(); ++s) {
+        VotedLabels(scenes, outs, held, Scaled(fold_fit.bias, c.shrinks[s]), cfg.semantic_vote,
+                    &gt[s], &pred[s]);
+      }
+    }
+    double best = -1;
+    for (std::size_t s = 0; s < c.shrinks.size(); ++s) {
+      const double m = pipeline::MeanIouPresent(gt[s], pred[s], nn::kStage1Classes);
+      cv.emplace_back(c.shrinks[s], m);
+      if (m > best + 1e-9) {
+        best = m;
+        shrink = c.shrinks[s];
+      }
+    }
+    std::printf("%d-fold cross-validation of the shrink factor (held-out mIoU with the vote):",
+                c.folds);
+    for (const auto& [f, m] : cv) std::printf(" %.2f: %.4f", f, m);
+    std::printf(" -> %.2f\n", shrink);
+  }
+  pipeline::ClassBiasFit fit = FitOn(scenes, outs, AllScenes(scenes.size()), c.fit);
+  const std::vector<float> raw_bias = fit.bias;
+  if (shrink != 1.0) {
+    fit.bias = Scaled(fit.bias, shrink);
+    // Re-score the argmax with the shrunk bias so that the table shows what is shipped.
+    std::vector<int> gt, pred;
+    for (std::size_t k = 0; k < scenes.size(); ++k) {
+      std::vector<float> prob = outs[k].semantic_prob;
+      const std::vector<int> sem = pipeline::ApplyClassBias(fit.bias, &prob, nn::kStage1Classes);
+      gt.insert(gt.end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
+      pred.insert(pred.end(), sem.begin(), sem.end());
+    }
+    fit.miou_after = pipeline::MeanIouPresent(gt, pred, nn::kStage1Classes, &fit.iou_after);
+  }
   const auto t2 = Clock::now();
   // The vote as configured (card / flags), without and with the bias.
   std::vector<double> voted_before, voted_after;
@@ -973,6 +1057,12 @@ void RunCalibrate(const CalibrateArgs& c) {
     j["scans"] = a.scans;
     j["scenes"] = scenes.size();
     j["class_bias"] = fit.bias;
+    j["class_bias_unshrunk"] = raw_bias;
+    j["shrink"] = shrink;
+    j["folds"] = c.folds;
+    nlohmann::json jcv = nlohmann::json::array();
+    for (const auto& [f, m] : cv) jcv.push_back({{"shrink", f}, {"heldout_miou", m}});
+    j["cross_validation"] = jcv;
     j["miou_argmax"] = {{"before", fit.miou_before}, {"after", fit.miou_after}};
     j["miou_vote"] = {{"before", mv_before}, {"with_bias", mv_configured}, {"after", mv_after}};
     j["vote_exclude"] = ClassListToString(vote.excluded_classes);
@@ -999,6 +1089,12 @@ void SetupCalibrate(CLI::App& app) {
   app.add_option("--max-bias", c->fit.max_bias, "search grid: largest bias (>= 0)");
   app.add_option("--step", c->fit.step, "search grid step");
   app.add_option("--sweeps", c->fit.max_sweeps, "coordinate-ascent sweeps at most");
+  app.add_option("--folds", c->folds,
+                 "cross-validation folds (over scenes) choosing the shrink factor of the bias; 0 = "
+                 "use --shrink");
+  app.add_option("--shrinks", c->shrinks, "candidate shrink factors in [0, 1]")->expected(1, -1);
+  app.add_option("--shrink", c->shrink, "shrink factor with --folds 0")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_flag("!--keep-vote-exclude", c->choose_vote_exclude,
                "keep the card's / --vote-exclude's classes instead of choosing them greedily");
   app.add_option("--json", c->json, "write the fitted bias and the IoUs as JSON");

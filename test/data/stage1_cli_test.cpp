@@ -3,6 +3,7 @@
 // PNG) -> `dimr bench stage1`; a corrupt model file gives a clear error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -146,6 +147,15 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
       << out;
   const nlohmann::json jk = nlohmann::json::parse(ReadFileText(d + "/calib.json"));
   ASSERT_EQ(jk["class_bias"].size(), 25u);
+  ASSERT_EQ(jk["cross_validation"].size(), 5u);  // shrink factors 0, 0.25, ..., 1 on 2 folds
+  double best_cv = -1, chosen_cv = -1;
+  for (const auto& e : jk["cross_validation"]) {
+    best_cv = std::max(best_cv, e["heldout_miou"].get<double>());
+    if (e["shrink"].get<double>() == jk["shrink"].get<double>()) {
+      chosen_cv = e["heldout_miou"].get<double>();
+    }
+  }
+  EXPECT_DOUBLE_EQ(chosen_cv, best_cv);
   EXPECT_GE(jk["miou_argmax"]["after"].get<double>(), jk["miou_argmax"]["before"].get<double>());
   EXPECT_GE(jk["miou_vote"]["after"].get<double>(), jk["miou_vote"]["with_bias"].get<double>());
   std::string bias;
@@ -163,6 +173,10 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   const nlohmann::json jb = nlohmann::json::parse(ReadFileText(d + "/eval_bias.json"));
   EXPECT_NEAR(jb["miou_present"].get<double>(), jk["miou_vote"]["after"].get<double>(), 1e-9);
   EXPECT_NEAR(jc["miou_present"].get<double>(), jk["miou_vote"]["before"].get<double>(), 1e-9);
+  std::tie(rc, out) = RunCli("stage1 calibrate --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --folds 3");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("--folds 3 exceeds the 2 scenes"), std::string::npos) << out;
   std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
                              "/cache.bin --class-bias 0.1,0.2");
   EXPECT_NE(rc, 0);
