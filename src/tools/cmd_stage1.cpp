@@ -871,6 +871,7 @@ struct CalibrateArgs {
   int folds = 2;        // cross-validation folds choosing the shrink factor (0 = use `shrink`)
   double shrink = 1.0;  // factor on the fitted bias when folds = 0
   std::vector<double> shrinks{0.0, 0.25, 0.5, 0.75, 1.0};
+  std::vector<double> vote_radii;  // candidate vote radii (empty = keep the configured one)
   std::string json;
 };
 
@@ -1001,6 +1002,25 @@ void RunCalibrate(const CalibrateArgs& c) {
   const double mv_before = VotedMiou(scenes, outs, {}, vote, &voted_before);
   double mv_after = VotedMiou(scenes, outs, fit.bias, vote, &voted_after);
   const double mv_configured = mv_after;
+  // The vote radius from --vote-radii (largest voted mIoU with the bias), if given.
+  std::vector<std::pair<double, double>> radii;  // radius, voted mIoU
+  for (double r : c.vote_radii) {
+    pipeline::SemanticVoteConfig trial = vote;
+    trial.radius = r;
+    std::vector<double> per;
+    const double m = VotedMiou(scenes, outs, fit.bias, trial, &per);
+    radii.emplace_back(r, m);
+    if (m > mv_after + 1e-9) {
+      vote = trial;
+      mv_after = m;
+      voted_after = per;
+    }
+  }
+  if (!radii.empty()) {
+    std::printf("vote radius (voted mIoU with the bias):");
+    for (const auto& [r, m] : radii) std::printf(" %.3g m: %.4f", r, m);
+    std::printf(" -> %.3g m\n", vote.radius);
+  }
   // Then which thing classes should stay out of the vote: greedy toggles, kept when the voted
   // mIoU rises by more than 1e-4 (a vote merges small objects into their larger neighbours).
   if (vote.radius > 0 && c.choose_vote_exclude) {
@@ -1044,11 +1064,12 @@ void RunCalibrate(const CalibrateArgs& c) {
   }
   std::printf(
       "\nmIoU (classes present): argmax %.4f -> %.4f with the bias; with the vote %.4f -> "
-      "%.4f with the bias -> %.4f with the bias and vote_exclude=%s\n",
-      fit.miou_before, fit.miou_after, mv_before, mv_configured, mv_after,
+      "%.4f with the bias -> %.4f with the bias, vote radius %.3g m and vote_exclude=%s\n",
+      fit.miou_before, fit.miou_after, mv_before, mv_configured, mv_after, vote.radius,
       vote.excluded_classes.empty() ? "none" : ClassListToString(vote.excluded_classes).c_str());
   inf.class_bias = fit.bias;
   inf.vote_exclude = vote.excluded_classes;
+  inf.vote_radius = vote.radius;
   std::printf("model card line:\nrecommended_inference: \"%s\"\n", inf.ToString().c_str());
   if (!c.json.empty()) {
     nlohmann::json j;
@@ -1066,6 +1087,7 @@ void RunCalibrate(const CalibrateArgs& c) {
     j["miou_argmax"] = {{"before", fit.miou_before}, {"after", fit.miou_after}};
     j["miou_vote"] = {{"before", mv_before}, {"with_bias", mv_configured}, {"after", mv_after}};
     j["vote_exclude"] = ClassListToString(vote.excluded_classes);
+    j["vote_radius"] = vote.radius;
     nlohmann::json per = nlohmann::json::object();
     for (int k = 0; k < nn::kStage1Classes; ++k) {
       per[names[k]] = {{"bias", fit.bias[k]},
@@ -1095,6 +1117,11 @@ void SetupCalibrate(CLI::App& app) {
   app.add_option("--shrinks", c->shrinks, "candidate shrink factors in [0, 1]")->expected(1, -1);
   app.add_option("--shrink", c->shrink, "shrink factor with --folds 0")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--vote-radii", c->vote_radii,
+                 "candidate semantic-vote radii (m), the best with the bias is kept (default: the "
+                 "configured radius)")
+      ->expected(1, -1)
+      ->check(CLI::Range(0.0, 10.0));
   app.add_flag("!--keep-vote-exclude", c->choose_vote_exclude,
                "keep the card's / --vote-exclude's classes instead of choosing them greedily");
   app.add_option("--json", c->json, "write the fitted bias and the IoUs as JSON");

@@ -140,13 +140,16 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
 
   // Calibration: the fitted class bias never lowers the mIoU, and `stage1 eval` with the
   // printed bias and vote exclusions reproduces exactly the mIoU calibrate reports.
-  std::tie(rc, out) = RunCli("stage1 calibrate --model " + model + "/stage1.pt --scans " + d +
-                             "/cache.bin --step 0.25 --json " + d + "/calib.json");
+  std::tie(rc, out) =
+      RunCli("stage1 calibrate --model " + model + "/stage1.pt --scans " + d +
+             "/cache.bin --step 0.25 --vote-radii 0.05 0.1 --json " + d + "/calib.json");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("recommended_inference: \"passes=s0.12,s0.2 rotations=2"), std::string::npos)
       << out;
   const nlohmann::json jk = nlohmann::json::parse(ReadFileText(d + "/calib.json"));
   ASSERT_EQ(jk["class_bias"].size(), 25u);
+  const double radius = jk["vote_radius"].get<double>();
+  EXPECT_TRUE(radius == 0.05 || radius == 0.1) << radius;
   ASSERT_EQ(jk["cross_validation"].size(), 5u);  // shrink factors 0, 0.25, ..., 1 on 2 folds
   double best_cv = -1, chosen_cv = -1;
   for (const auto& e : jk["cross_validation"]) {
@@ -166,9 +169,10 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   }
   std::string exclude = jk["vote_exclude"].get<std::string>();
   if (exclude.empty()) exclude = "none";
-  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
-                             "/cache.bin --class-bias " + bias + " --vote-exclude " + exclude +
-                             " --json " + d + "/eval_bias.json");
+  std::tie(rc, out) =
+      RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+             "/cache.bin --class-bias " + bias + " --vote-exclude " + exclude + " --vote-radius " +
+             std::to_string(jk["vote_radius"].get<double>()) + " --json " + d + "/eval_bias.json");
   ASSERT_EQ(rc, 0) << out;
   const nlohmann::json jb = nlohmann::json::parse(ReadFileText(d + "/eval_bias.json"));
   EXPECT_NEAR(jb["miou_present"].get<double>(), jk["miou_vote"]["after"].get<double>(), 1e-9);
