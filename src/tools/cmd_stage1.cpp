@@ -588,14 +588,23 @@ std::string BiasToString(const std::vector<float>& bias) {
   return r;
 }
 
+// The comma-separated items of a card value or flag; "" and "none" have none.
+std::vector<std::string> CommaItems(const std::string& text) {
+  std::vector<std::string> items;
+  if (text.empty() || text == "none") return items;
+  std::stringstream in(text);
+  std::string item;
+  while (std::getline(in, item, ',')) items.push_back(item);
+  return items;
+}
+
 // "none" / "" = no bias, else exactly kStage1Classes comma-separated finite numbers. Throws
 // dimr::InvalidArgument naming the bad item.
 std::vector<float> ParseClassBias(const std::string& text) {
-  if (text.empty() || text == "none") return {};
+  const std::vector<std::string> items = CommaItems(text);
+  if (items.empty()) return {};
   std::vector<float> r;
-  std::stringstream in(text);
-  std::string item;
-  while (std::getline(in, item, ',')) {
+  for (const std::string& item : items) {
     std::size_t used = 0;
     float v = 0;
     try {
@@ -624,12 +633,9 @@ std::string ClassListToString(const std::vector<int>& classes) {
 // "none" / "" = no class, else comma-separated RFS class names (sorted by id on return).
 // Throws dimr::InvalidArgument naming an unknown name.
 std::vector<int> ParseClassList(const std::string& text) {
-  if (text.empty() || text == "none") return {};
   std::vector<int> r;
-  std::stringstream in(text);
-  std::string item;
   const auto& names = data::RfsClassNames();
-  while (std::getline(in, item, ',')) {
+  for (const std::string& item : CommaItems(text)) {
     const auto it =
         std::find_if(names.begin(), names.end(), [&](const char* n) { return item == n; });
     if (it == names.end()) {
