@@ -993,12 +993,8 @@ void RunCalibrate(const CalibrateArgs& c) {
     fit.bias = Scaled(fit.bias, shrink);
     // Re-score the argmax with the shrunk bias so that the table shows what is shipped.
     std::vector<int> gt, pred;
-    for (std::size_t k = 0; k < scenes.size(); ++k) {
-      std::vector<float> prob = outs[k].semantic_prob;
-      const std::vector<int> sem = pipeline::ApplyClassBias(fit.bias, &prob, nn::kStage1Classes);
-      gt.insert(gt.end(), scenes[k].semantic.begin(), scenes[k].semantic.end());
-      pred.insert(pred.end(), sem.begin(), sem.end());
-    }
+    VotedLabels(scenes, outs, AllScenes(scenes.size()), fit.bias, pipeline::SemanticVoteConfig(),
+                &gt, &pred);  // default config: radius 0, no vote
     fit.miou_after = pipeline::MeanIouPresent(gt, pred, nn::kStage1Classes, &fit.iou_after);
   }
   const auto t2 = Clock::now();
