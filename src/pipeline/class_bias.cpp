@@ -155,19 +155,12 @@ ClassBiasFit FitClassBias(const std::vector<int>& labels, const std::vector<floa
 
   ClassBiasFit fit;
   fit.bias.assign(C, 0.0f);
-  auto predict = [&](const std::vector<float>& b) {
-    std::vector<int> pred(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      const float* row = logp.data() + i * C;
-      int best = 0;
-      for (int c = 1; c < C; ++c) {
-        if (row[c] + b[c] > row[best] + b[best]) best = c;
-      }
-      pred[i] = best;
-    }
-    return pred;
+  // The objective as ApplyClassBias + MeanIouPresent score it (unlabelled points ignored).
+  auto score = [&](const std::vector<float>& b, std::vector<double>* per_class) {
+    std::vector<float> p = prob;
+    return MeanIouPresent(labels, ApplyClassBias(b, &p, C), C, per_class);
   };
-  fit.miou_before = MeanIouPresent(gt, predict(fit.bias), C, &fit.iou_before);
+  fit.miou_before = score({}, &fit.iou_before);
 
   const int grid_size =
       static_cast<int>(std::floor((options.max_bias - options.min_bias) / options.step + 1e-9)) + 1;
@@ -250,7 +243,7 @@ ClassBiasFit FitClassBias(const std::vector<int>& labels, const std::vector<floa
     if (!changed) break;
   }
   fit.sweeps = std::min(fit.sweeps, options.max_sweeps);
-  fit.miou_after = MeanIouPresent(gt, predict(fit.bias), C, &fit.iou_after);
+  fit.miou_after = score(fit.bias, &fit.iou_after);
   return fit;
 }
 
