@@ -563,6 +563,32 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   if (opt.batch_size < 1 || opt.points_per_sample < 2) {
     throw InvalidArgument("BspTrainOptions: batch_size >= 1 and points_per_sample >= 2 required");
   }
+  const bool distill = opt.latent_targets.size() > 0;
+  if (distill) {
+    if (opt.latent_targets.rows() != static_cast<Eigen::Index>(train.samples.size()) ||
+        opt.latent_targets.cols() != impl_->config.latent_dim) {
+      throw InvalidArgument(
+          "BspTrainOptions: latent_targets is " + std::to_string(opt.latent_targets.rows()) +
+          " x " + std::to_string(opt.latent_targets.cols()) + ", expected " +
+          std::to_string(train.samples.size()) + " x " + std::to_string(impl_->config.latent_dim) +
+          " (one mu per training sample)");
+    }
+    if (!opt.latent_targets.allFinite()) {
+      throw InvalidArgument("BspTrainOptions: latent_targets are not all finite");
+    }
+    if (!(opt.latent_target_weight > 0) || !std::isfinite(opt.latent_target_weight)) {
+      throw InvalidArgument("BspTrainOptions: latent_target_weight must be finite and > 0");
+    }
+  }
+  if (!(opt.recon_weight >= 0) || !std::isfinite(opt.recon_weight)) {
+    throw InvalidArgument("BspTrainOptions: recon_weight must be finite and >= 0");
+  }
+  const bool decode = opt.recon_weight > 0;
+  if (!decode && !(distill && opt.freeze_decoder)) {
+    throw InvalidArgument(
+        "BspTrainOptions: recon_weight 0 needs latent targets and a frozen decoder (nothing "
+        "else would train)");
+  }
   for (std::size_t i = 0; i < train.samples.size(); ++i) {
     if (train.samples[i].inside_points.empty() || train.samples[i].outside_points.empty()) {
       throw InvalidArgument("training sample " + std::to_string(i) + " (" +
@@ -619,6 +645,13 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   for (int skip = 0; skip < start_epoch; ++skip) rng.discard(1000003);
   const int N = opt.points_per_sample;
   const int half = N / 2;
+  torch::Tensor targets_all;  // [samples, latent] on the training device
+  if (distill) {
+    Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = opt.latent_targets;
+    targets_all = torch::from_blob(rows.data(), {rows.rows(), rows.cols()}, torch::kFloat)
+                      .clone()
+                      .to(impl_->device);
+  }
   std::vector<BspEpochLog> logs;
   const auto t_start = std::chrono::steady_clock::now();
   auto checkpoint = [&](int epoch_done) {
@@ -648,7 +681,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     std::vector<std::size_t> order(train.samples.size());
     std::iota(order.begin(), order.end(), 0);
     std::shuffle(order.begin(), order.end(), rng);
-    double recon_sum = 0, kl_sum = 0;
+    double recon_sum = 0, kl_sum = 0, latent_sum = 0;
     int batches = 0;
     const auto t0 = std::chrono::steady_clock::now();
     for (std::size_t start = 0; start < order.size(); start += opt.batch_size) {
@@ -657,11 +690,12 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
       if (idx.size() < 2 && order.size() >= 2) continue;  // BatchNorm needs >= 2 samples
       const int64_t Bn = static_cast<int64_t>(idx.size());
       auto [grids, classes] = GridBatch(train, idx);
-      auto pts = torch::empty({Bn, N, 3}, torch::kFloat);
-      auto occ = torch::empty({Bn, N, 1}, torch::kFloat);
+      const int64_t Np = decode ? N : 0;  // no query points when only regressing codes
+      auto pts = torch::empty({Bn, Np, 3}, torch::kFloat);
+      auto occ = torch::empty({Bn, Np, 1}, torch::kFloat);
       float* pp = pts.data_ptr<float>();
       float* op = occ.data_ptr<float>();
-      for (int64_t b = 0; b < Bn; ++b) {
+      for (int64_t b = 0; decode && b < Bn; ++b) {
         const BspSample& s = train.samples[idx[b]];
         const std::size_t n_in = s.inside_points.size() / 3, n_out = s.outside_points.size() / 3;
         for (int i = 0; i < N; ++i) {
@@ -681,6 +715,24 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
       const int L = impl_->config.latent_dim;
       auto mu = code.slice(1, 0, L);
       auto logvar = code.slice(1, L, 2 * L);
+      auto kl = KlTerm(mu, logvar);
+      torch::Tensor latent_mse = torch::zeros({}, mu.options());
+      if (distill) {
+        std::vector<int64_t> rows(idx.begin(), idx.end());
+        auto target =
+            targets_all.index_select(0, torch::tensor(rows, torch::kLong).to(impl_->device));
+        latent_mse = torch::mean(torch::pow(mu - target, 2));
+      }
+      if (!decode) {  // regression onto the latent targets only
+        auto loss = opt.latent_target_weight * latent_mse + beta * kl;
+        optimizer.zero_grad();
+        loss.backward();
+        optimizer.step();
+        kl_sum += kl.item<double>();
+        latent_sum += latent_mse.item<double>();
+        ++batches;
+        continue;
+      }
       auto z = opt.sample_latent ? mu + torch::randn_like(mu) * torch::exp(0.5 * logvar) : mu;
       auto planes = net->Planes(z, classes);
       auto h1 = BspNetImpl::PlaneExcess(pts, planes, opt.loss_dilation);
@@ -706,13 +758,14 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
           recon = recon - torch::mean(h2 * occ * inside_c * multi);
         }
       }
-      auto kl = KlTerm(mu, logvar);
-      auto loss = recon + reg + beta * kl;
+      auto loss = opt.recon_weight * recon + reg + beta * kl;
+      if (distill) loss = loss + opt.latent_target_weight * latent_mse;
       optimizer.zero_grad();
       loss.backward();
       optimizer.step();
       recon_sum += recon.item<double>();
       kl_sum += kl.item<double>();
+      latent_sum += latent_mse.item<double>();
       ++batches;
     }
     BspEpochLog entry;
@@ -720,6 +773,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     entry.phase = phase;
     entry.recon_loss = batches ? recon_sum / batches : 0;
     entry.kl = batches ? kl_sum / batches : 0;
+    entry.latent_mse = batches ? latent_sum / batches : 0;
     entry.beta = beta;
     entry.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     net->eval();

@@ -9,6 +9,7 @@
 #include <numeric>
 #include <sstream>
 #include <string>
+#include <unordered_map>
 #include <vector>
 
 #include "dimr/geometry/error.h"
@@ -40,7 +41,41 @@ struct TrainArgs {
   bool freeze_decoder = false;
   bool no_sampling = false;
   double loss_dilation = 0.0;
+  std::string latent_targets;  // pool file (dimr encode-pool) whose mu are distillation targets
+  double latent_weight = 1.0, recon_weight = 1.0;
 };
+
+// One target mu per training sample, looked up by model id in a pool file; every sample must
+// have one (named in the error otherwise) and the latent sizes must match.
+Eigen::MatrixXf LatentTargets(const std::string& pool_path, const nn::BspDataset& train,
+                              int latent_dim) {
+  const pipeline::ShapePool pool = pipeline::ShapePool::Load(pool_path);
+  if (pool.latent_dim() != latent_dim) {
+    throw InvalidArgument("--latent-targets '" + pool_path + "' holds " +
+                          std::to_string(pool.latent_dim()) + "-d codes, the model has " +
+                          std::to_string(latent_dim));
+  }
+  std::unordered_map<std::string, std::size_t> by_id;
+  for (std::size_t i = 0; i < pool.size(); ++i) by_id[pool.entries()[i].model_id] = i;
+  Eigen::MatrixXf targets(static_cast<Eigen::Index>(train.samples.size()), latent_dim);
+  for (std::size_t s = 0; s < train.samples.size(); ++s) {
+    const auto& sample = train.samples[s];
+    const auto it = by_id.find(sample.model_id);
+    if (it == by_id.end()) {
+      throw InvalidArgument("--latent-targets '" + pool_path +
+                            "' has no code for training model '" + sample.model_id + "' (sample " +
+                            std::to_string(s) + ")");
+    }
+    const auto& entry = pool.entries()[it->second];
+    if (entry.cad_class != sample.cad_class) {
+      throw InvalidArgument("--latent-targets '" + pool_path + "': model '" + sample.model_id +
+                            "' has class " + std::to_string(entry.cad_class) + " in the pool, " +
+                            std::to_string(sample.cad_class) + " in the training set");
+    }
+    targets.row(static_cast<Eigen::Index>(s)) = entry.code.head(latent_dim).transpose();
+  }
+  return targets;
+}
 
 nn::BspConfig ConfigFromArg(const std::string& text) {
   if (text == "cpu") return nn::BspConfig::CpuDefault();
@@ -67,6 +102,10 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   if (a.freeze_decoder) y << "  frozen: decoder and convex/union weights (encoder trained)\n";
   if (a.no_sampling) y << "  latent_in_loss: mu (no sampling)\n";
   if (a.loss_dilation > 0) y << "  loss_dilation: " << a.loss_dilation << "\n";
+  if (!a.latent_targets.empty()) {
+    y << "  latent_targets: \"" << a.latent_targets << "\"   # weight " << a.latent_weight
+      << ", reconstruction weight " << a.recon_weight << "\n";
+  }
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
@@ -115,6 +154,13 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
   nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
+  opt.latent_target_weight = a.latent_weight;
+  opt.recon_weight = a.recon_weight;
+  if (!a.latent_targets.empty()) {
+    opt.latent_targets = LatentTargets(a.latent_targets, train, model.config().latent_dim);
+  } else if (a.recon_weight == 0) {
+    throw InvalidArgument("--recon-weight 0 needs --latent-targets (nothing else would train)");
+  }
   if (!a.init.empty()) {
     if (a.config_given && model.config().ToString() != config.ToString()) {
       throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
@@ -131,14 +177,15 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
               config.ToString().c_str(), static_cast<long long>(model.NumParameters()),
               train.samples.size(), val.samples.size());
   std::ofstream csv(a.out + "/train_log.csv", std::ios::app);
-  csv << "epoch,phase,recon_loss,kl,beta,val_iou,seconds\n";
+  csv << "epoch,phase,recon_loss,kl,latent_mse,beta,val_iou,seconds\n";
   const auto logs = model.Train(train, val, opt, [&](const nn::BspEpochLog& e) {
-    std::printf("epoch %4d phase %d  recon %.5f  kl %.4f  beta %.4f  val_iou %s  %.1f s\n", e.epoch,
-                e.phase, e.recon_loss, e.kl, e.beta,
-                e.val_iou < 0 ? "-" : std::to_string(e.val_iou).c_str(), e.seconds);
+    std::printf(
+        "epoch %4d phase %d  recon %.5f  kl %.4f  latent_mse %.5f  beta %.4f  val_iou %s  %.1f s\n",
+        e.epoch, e.phase, e.recon_loss, e.kl, e.latent_mse, e.beta,
+        e.val_iou < 0 ? "-" : std::to_string(e.val_iou).c_str(), e.seconds);
     std::fflush(stdout);
-    csv << e.epoch << "," << e.phase << "," << e.recon_loss << "," << e.kl << "," << e.beta << ","
-        << e.val_iou << "," << e.seconds << "\n";
+    csv << e.epoch << "," << e.phase << "," << e.recon_loss << "," << e.kl << "," << e.latent_mse
+        << "," << e.beta << "," << e.val_iou << "," << e.seconds << "\n";
     csv.flush();
   });
   const double val_iou = val.samples.empty() ? -1.0 : model.EvaluateIoU(val);
@@ -363,6 +410,16 @@ void SetupTrain(CLI::App& app) {
   app.add_flag("--freeze-decoder", a->freeze_decoder,
                "train the encoder only (with --init): the decoder and the convex/union weights "
                "stay as they are, so the encoder learns codes the decoder turns into the shapes");
+  app.add_option("--latent-targets", a->latent_targets,
+                 "pool file (dimr encode-pool, e.g. --refine-steps 30) whose mu are regression "
+                 "targets for the encoder, matched by model id (latent distillation)");
+  app.add_option("--latent-weight", a->latent_weight,
+                 "weight of mean((mu - target)^2) with --latent-targets")
+      ->check(CLI::PositiveNumber);
+  app.add_option("--recon-weight", a->recon_weight,
+                 "weight of the reconstruction loss; 0 (with --latent-targets and "
+                 "--freeze-decoder) trains the encoder by regression alone, without decoding")
+      ->check(CLI::NonNegativeNumber);
   app.callback([a, &app, config_opt]() {
     a->fp16 = !a->fp32;
     a->config_given = config_opt->count() > 0;

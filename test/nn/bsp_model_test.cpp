@@ -280,5 +280,77 @@ TEST(BspModel, FrozenDecoderOnMuIsDeterministicAndHonoursTheLossDilation) {
   std::filesystem::remove(path);
 }
 
+TEST(BspModel, LatentDistillationPullsTheEncoderOntoItsTargets) {
+  BspModel base(TinyConfig(), 3);
+  const BspDataset data = TinyData();
+  base.Train(data, BspDataset(), TinyTraining(30, 10));
+  const std::string path = ::testing::TempDir() + "/bsp_distill_base.pt";
+  base.Save(path, /*fp16=*/false);
+  // Targets: the refined codes of every training shape (what RefineLatent finds).
+  Eigen::MatrixXf targets(static_cast<Eigen::Index>(data.samples.size()), 8);
+  double before = 0;
+  for (std::size_t s = 0; s < data.samples.size(); ++s) {
+    const auto mu = base.Encode(data.samples[s].grid, data.samples[s].cad_class).first;
+    targets.row(static_cast<Eigen::Index>(s)) =
+        base.RefineLatent(mu, data.samples[s], 40, 0.05).mu.transpose();
+    before += (mu - targets.row(static_cast<Eigen::Index>(s)).transpose()).squaredNorm();
+  }
+  ASSERT_GT(before, 1e-4);
+  auto distance = [&](const BspModel& m) {
+    double d = 0;
+    for (std::size_t s = 0; s < data.samples.size(); ++s) {
+      const auto mu = m.Encode(data.samples[s].grid, data.samples[s].cad_class).first;
+      d += (mu - targets.row(static_cast<Eigen::Index>(s)).transpose()).squaredNorm();
+    }
+    return d;
+  };
+  // The encoder in eval mode (BatchNorm running statistics) reproduces the base codes.
+  EXPECT_NEAR(distance(base), before, 1e-3 * before);
+  BspTrainOptions opt = TinyTraining(0, 60);
+  opt.freeze_decoder = true;
+  opt.sample_latent = false;
+  opt.kl_weight = 0;
+  opt.learning_rate = 3e-3;
+  opt.latent_targets = targets;
+  opt.latent_target_weight = 1.0;
+  const Eigen::VectorXf z = Eigen::VectorXf::LinSpaced(8, -0.5f, 0.5f);
+  const Eigen::MatrixXf planes = base.DecodePlanes(z, 1);
+  {  // Regression alone (no decoding): the codes move onto their targets.
+    BspModel m = BspModel::Load(path);
+    BspTrainOptions o = opt;
+    o.recon_weight = 0;
+    const auto logs = m.Train(data, BspDataset(), o);
+    ASSERT_EQ(logs.size(), 60u);
+    EXPECT_EQ(logs.back().recon_loss, 0.0);  // nothing decoded
+    EXPECT_LT(logs.back().latent_mse, 0.5 * logs.front().latent_mse);
+    EXPECT_LT(distance(m), 0.5 * before) << "before " << before;
+    EXPECT_EQ((m.DecodePlanes(z, 1) - planes).cwiseAbs().maxCoeff(), 0.f);  // decoder frozen
+  }
+  {  // With the reconstruction term both are logged and the codes still approach the targets.
+    BspModel m = BspModel::Load(path);
+    const auto logs = m.Train(data, BspDataset(), opt);
+    EXPECT_GT(logs.back().recon_loss, 0.0);
+    EXPECT_GT(logs.front().latent_mse, 0.0);
+    EXPECT_LT(distance(m), before);
+  }
+  // Bad options are named.
+  BspModel m = BspModel::Load(path);
+  BspTrainOptions bad = opt;
+  bad.latent_targets = Eigen::MatrixXf::Zero(3, 8);  // 3 rows for 4 samples
+  EXPECT_THROW(m.Train(data, BspDataset(), bad), InvalidArgument);
+  bad = opt;
+  bad.latent_targets(0, 0) = std::nanf("");
+  EXPECT_THROW(m.Train(data, BspDataset(), bad), InvalidArgument);
+  bad = opt;
+  bad.latent_targets.resize(0, 0);
+  bad.recon_weight = 0;  // nothing would train
+  EXPECT_THROW(m.Train(data, BspDataset(), bad), InvalidArgument);
+  bad = opt;
+  bad.freeze_decoder = false;
+  bad.recon_weight = 0;  // regression only needs a frozen decoder
+  EXPECT_THROW(m.Train(data, BspDataset(), bad), InvalidArgument);
+  std::filesystem::remove(path);
+}
+
 }  // namespace
 }  // namespace dimr::nn

@@ -65,6 +65,15 @@ struct BspTrainOptions {
   // Move every plane outwards by this much in the reconstruction loss, as decoding with
   // BspMeshOptions::dilation does (train for the decoding rule that is shipped); 0 = reference.
   double loss_dilation = 0.0;
+  // Latent distillation: target codes (rows = training samples in order, latent_dim columns),
+  // e.g. the encoder's mu refined on each shape's own occupancy (RefineLatent, the CAD pool).
+  // Adds latent_target_weight * mean((mu - target)^2) to the loss, so the encoder learns what
+  // refinement finds (amortised refinement). Empty = no targets.
+  Eigen::MatrixXf latent_targets;
+  double latent_target_weight = 1.0;
+  // Weight of the reconstruction term. 0 (only with latent targets and a frozen decoder) skips
+  // decoding altogether: the encoder is trained by regression alone, a fraction of the cost.
+  double recon_weight = 1.0;
 };
 
 struct BspEpochLog {
@@ -72,6 +81,7 @@ struct BspEpochLog {
   int phase = 0;
   double recon_loss = 0;  // reconstruction term (without the weight regularisers)
   double kl = 0;          // KL term (unweighted)
+  double latent_mse = 0;  // mean squared distance of mu to its latent target (0 if none)
   double beta = 0;
   double val_iou = -1;  // mean occupancy IoU on the validation points (-1 if no val set)
   double seconds = 0;
