@@ -437,7 +437,11 @@ std::vector<std::vector<int>> BspModel::ConvexPlanes() const {
 }
 
 std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int cad_class,
-                                              const Eigen::MatrixX3f& points) const {
+                                              const Eigen::MatrixX3f& points,
+                                              double dilation) const {
+  if (!(dilation >= 0) || !std::isfinite(dilation)) {
+    throw InvalidArgument("Occupancy: dilation must be finite and >= 0");
+  }
   const auto& c = impl_->config;
   Eigen::MatrixXf planes = DecodePlanes(latent.head(c.latent_dim), cad_class);
   torch::NoGradGuard no_grad;
@@ -454,8 +458,8 @@ std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int
     auto pts = torch::from_blob(rows.data() + start * 3, {1, n, 3}, torch::kFloat)
                    .clone()
                    .to(impl_->device);
-    auto h1 = BspNetImpl::PlaneExcess(pts, planes_t);  // [1, n, P]
-    auto h2 = torch::matmul(h1, B);                    // [1, n, C]
+    auto h1 = BspNetImpl::PlaneExcess(pts, planes_t, dilation);  // [1, n, P]
+    auto h2 = torch::matmul(h1, B);                              // [1, n, C]
     auto inside = (std::get<0>(h2.min(2)) < kConvexThreshold).to(torch::kCPU).contiguous();
     const bool* in = inside.data_ptr<bool>();
     for (int64_t i = 0; i < n; ++i) out[static_cast<std::size_t>(start + i)] = in[i] ? 1 : 0;
@@ -524,7 +528,7 @@ BspModel::Refined BspModel::RefineLatent(const Eigen::VectorXf& latent, const Bs
   return r;
 }
 
-double BspModel::EvaluateIoU(const BspDataset& data) const {
+double BspModel::EvaluateIoU(const BspDataset& data, double dilation) const {
   CheckDataset(data, impl_->config, "evaluation set");
   if (data.samples.empty()) return 0.0;
   const int R = data.resolution;
@@ -537,7 +541,7 @@ double BspModel::EvaluateIoU(const BspDataset& data) const {
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     const Eigen::VectorXf mu =
         codes.row(static_cast<Eigen::Index>(s)).head(impl_->config.latent_dim);
-    const auto pred = Occupancy(mu, data.samples[s].cad_class, centers);
+    const auto pred = Occupancy(mu, data.samples[s].cad_class, centers, dilation);
     const auto& sample = data.samples[s];
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
     std::size_t inter = 0, uni = 0;
@@ -559,6 +563,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   if (train.samples.empty()) throw InvalidArgument("training set is empty");
   if (!(opt.loss_dilation >= 0) || !std::isfinite(opt.loss_dilation)) {
     throw InvalidArgument("BspTrainOptions: loss_dilation must be finite and >= 0");
+  }
+  if (!(opt.val_dilation >= 0) || !std::isfinite(opt.val_dilation)) {
+    throw InvalidArgument("BspTrainOptions: val_dilation must be finite and >= 0");
   }
   if (opt.batch_size < 1 || opt.points_per_sample < 2) {
     throw InvalidArgument("BspTrainOptions: batch_size >= 1 and points_per_sample >= 2 required");
@@ -783,7 +790,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     const bool out_of_time = opt.max_minutes > 0 && minutes > opt.max_minutes;
     if (!val.samples.empty() &&
         ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {
-      if (phase > 0) entry.val_iou = EvaluateIoU(val);
+      if (phase > 0) entry.val_iou = EvaluateIoU(val, opt.val_dilation);
     }
     logs.push_back(entry);
     if (log) log(entry);

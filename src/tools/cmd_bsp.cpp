@@ -43,6 +43,7 @@ struct TrainArgs {
   double loss_dilation = 0.0;
   std::string latent_targets;  // pool file (dimr encode-pool) whose mu are distillation targets
   double latent_weight = 1.0, recon_weight = 1.0;
+  double val_dilation = -1.0;  // < 0: the --init model card's recommended_dilation (else 0)
 };
 
 // One target mu per training sample, looked up by model id in a pool file; every sample must
@@ -85,7 +86,7 @@ nn::BspConfig ConfigFromArg(const std::string& text) {
 
 void WriteModelCard(const std::string& dir, const nn::BspModel& model, const TrainArgs& a,
                     const std::string& command, const std::vector<nn::BspEpochLog>& logs,
-                    double val_iou, const std::string& weights) {
+                    double val_iou, double val_dilation, const std::string& weights) {
   std::ofstream y(dir + "/model.yaml");
   y << "name: bsp_cvae\n";
   y << "description: BSP-CVAE shape autoencoder (class-conditioned), dimr-method.md sections 5-6\n";
@@ -109,8 +110,12 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
-  y << "  val_volumetric_iou_32: " << val_iou << "\n";
+  y << "  val_volumetric_iou_32: " << val_iou << "   # decoding dilation " << val_dilation << "\n";
   if (!logs.empty()) y << "  final_recon_loss: " << logs.back().recon_loss << "\n";
+  if (val_dilation > 0) {
+    y << "# decoding of the validation IoU (--val-dilation or the --init card), read by dimr bsp\n";
+    y << "recommended_dilation: " << val_dilation << "\n";
+  }
   y << "weights:\n";
   y << "  file: " << std::filesystem::path(weights).filename().string() << "\n";
   y << "  dtype: " << (a.fp16 ? "float16" : "float32") << "\n";
@@ -154,6 +159,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
   nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
+  opt.val_dilation = a.val_dilation >= 0 ? a.val_dilation
+                                         : (a.init.empty() ? 0.0 : ResolveBspDilation(a.init, -1));
   opt.latent_target_weight = a.latent_weight;
   opt.recon_weight = a.recon_weight;
   if (!a.latent_targets.empty()) {
@@ -188,10 +195,10 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         << "," << e.beta << "," << e.val_iou << "," << e.seconds << "\n";
     csv.flush();
   });
-  const double val_iou = val.samples.empty() ? -1.0 : model.EvaluateIoU(val);
+  const double val_iou = val.samples.empty() ? -1.0 : model.EvaluateIoU(val, opt.val_dilation);
   const std::string weights = a.out + "/bsp.pt";
   model.Save(weights, a.fp16);
-  WriteModelCard(a.out, model, a, command, logs, val_iou, weights);
+  WriteModelCard(a.out, model, a, command, logs, val_iou, opt.val_dilation, weights);
   std::printf("saved %s (val IoU %.4f), model card %s/model.yaml\n", weights.c_str(), val_iou,
               a.out.c_str());
 }
@@ -419,6 +426,10 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--recon-weight", a->recon_weight,
                  "weight of the reconstruction loss; 0 (with --latent-targets and "
                  "--freeze-decoder) trains the encoder by regression alone, without decoding")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--val-dilation", a->val_dilation,
+                 "decoding dilation of the logged validation IoU (default: the --init model "
+                 "card's recommended_dilation, else 0)")
       ->check(CLI::NonNegativeNumber);
   app.callback([a, &app, config_opt]() {
     a->fp16 = !a->fp32;

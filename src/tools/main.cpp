@@ -2,11 +2,16 @@
 #include <CLI/CLI.hpp>
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <map>
 #include <string>
 
 #include "tools/command_registry.h"
+
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 namespace dimr::tools {
 
@@ -31,9 +36,28 @@ const std::map<std::string, std::string>& GroupDescriptions() {
   return kGroups;
 }
 
+// LibTorch allocates and frees tensors of megabytes on every layer call. glibc's defaults hand
+// such blocks back to the kernel (mmap / trim), so every step page-faults them in again. On this
+// 2-vCPU virtual machine that cost up to 60 % system time when two training processes ran side
+// by side (BSP epoch 50 s; 19-20 s with the heap kept), and 10-15 % of the stage-1 U-Net forward
+// alone (docs/benchmarks.md). Both settings are needed: fixing only the trim threshold also pins
+// the mmap threshold at 128 KB (4x slower). An explicit GLIBC_TUNABLES or DIMR_DEFAULT_MALLOC=1
+// keeps glibc's behaviour.
+void TuneAllocator() {
+#ifdef __GLIBC__
+  if (std::getenv("GLIBC_TUNABLES") != nullptr) return;
+  if (const char* v = std::getenv("DIMR_DEFAULT_MALLOC"); v != nullptr && std::string(v) == "1") {
+    return;
+  }
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // the largest value glibc accepts (64-bit)
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  TuneAllocator();
   CLI::App app{"dimr: complete, labelled instance meshes from indoor point clouds (DIMR)"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("dimr 0.1.0"));

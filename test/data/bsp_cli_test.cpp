@@ -149,6 +149,46 @@ TEST(BspCli, TrainInitContinuesAModel) {
   EXPECT_NE(out.find("--init"), std::string::npos) << out;
   fs::remove_all(dir);
 }
+// `train bsp --latent-targets`: the encoder regresses the pool's codes (matched by model id) with
+// a frozen decoder; the card records the targets; a pool without a training model's id, or
+// --recon-weight 0 without targets, is refused naming the cause.
+TEST(BspCli, TrainDistilsPoolCodes) {
+  if (RunCli("train bsp --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
+  const fs::path dir = FreshTempDir("bsp_distill");
+  const std::string d = dir.string();
+  const std::string init = (fs::path(DIMR_SOURCE_DIR) / "models/bsp/bsp.pt").string();
+  auto [rc, out] = RunCli("bsp prepare --per-class 1 --seed 5 --jobs 2 --out " + d + "/data.bin");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = RunCli("encode-pool --model " + init + " --data " + d + "/data.bin --out " +
+                             d + "/pool.bin --refine-steps 5");
+  ASSERT_EQ(rc, 0) << out;
+  const std::string train = "train bsp --train " + d + "/data.bin --epochs 0,3,0 --batch 8 " +
+                            "--threads 1 --fp32 --freeze-decoder --kl 0 --init " + init;
+  std::tie(rc, out) =
+      RunCli(train + " --out " + d + "/run --latent-targets " + d + "/pool.bin --recon-weight 0");
+  ASSERT_EQ(rc, 0) << out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(out, m, std::regex(R"(epoch +3 .*latent_mse ([0-9.]+))"))) << out;
+  EXPECT_GT(std::stod(m[1]), 0.0) << out;  // refined codes differ from the encoder's mu
+  EXPECT_NE(out.find("recon 0.00000"), std::string::npos) << out;  // nothing decoded
+  const std::string card = ReadFileText(dir / "run/model.yaml");
+  EXPECT_NE(card.find("latent_targets: \"" + d + "/pool.bin\""), std::string::npos) << card;
+  // A pool of other models: the missing id is named.
+  std::tie(rc, out) =
+      RunCli("bsp prepare --per-class 1 --seed 6 --jobs 2 --out " + d + "/other.bin");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = RunCli("encode-pool --model " + init + " --data " + d + "/other.bin --out " +
+                             d + "/other_pool.bin");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) =
+      RunCli(train + " --out " + d + "/bad --latent-targets " + d + "/other_pool.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("has no code for training model"), std::string::npos) << out;
+  std::tie(rc, out) = RunCli(train + " --out " + d + "/bad2 --recon-weight 0");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("--latent-targets"), std::string::npos) << out;
+  fs::remove_all(dir);
+}
 #endif
 
 }  // namespace

@@ -74,6 +74,9 @@ struct BspTrainOptions {
   // Weight of the reconstruction term. 0 (only with latent targets and a frozen decoder) skips
   // decoding altogether: the encoder is trained by regression alone, a fraction of the cost.
   double recon_weight = 1.0;
+  // Decoding dilation of the validation IoU logged during training (the decoding that is
+  // shipped, e.g. the init model card's recommended_dilation); 0 = reference.
+  double val_dilation = 0.0;
 };
 
 struct BspEpochLog {
@@ -120,10 +123,12 @@ class BspModel {
   std::vector<std::vector<int>> ConvexPlanes() const;
   // Occupancy (discrete BSP, inside iff min over convexes of the summed plane excess < 0.01)
   // of query points (N x 3) for a latent code.
+  // `dilation` moves every plane outwards (BspMeshOptions::dilation; 0 = the reference).
   std::vector<std::uint8_t> Occupancy(const Eigen::VectorXf& latent, int cad_class,
-                                      const Eigen::MatrixX3f& points) const;
-  // Mean IoU between decoded (mu) and true occupancy over the query points of `data`.
-  double EvaluateIoU(const BspDataset& data) const;
+                                      const Eigen::MatrixX3f& points, double dilation = 0.0) const;
+  // Mean IoU between decoded (mu) and true occupancy on the grid of cell centres of `data`,
+  // decoding with `dilation`.
+  double EvaluateIoU(const BspDataset& data, double dilation = 0.0) const;
   // Latent refinement (auto-decoder style, for shapes whose occupancy is known, e.g. the CAD
   // pool): starting from `latent` (mu), `steps` Adam steps (learning rate `lr`) on the
   // discrete-phase reconstruction loss of the sample's inside/outside points, plus
