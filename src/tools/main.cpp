@@ -38,9 +38,9 @@ const std::map<std::string, std::string>& GroupDescriptions() {
 
 // LibTorch allocates and frees tensors of megabytes on every layer call. glibc's defaults hand
 // such blocks back to the kernel (mmap / trim), so every step page-faults them in again. On this
-// 2-vCPU virtual machine that cost up to 60 % system time when two training processes ran side
-// by side (BSP epoch 50 s; 19-20 s with the heap kept), and 10-15 % of the stage-1 U-Net forward
-// alone (docs/benchmarks.md). Both settings are needed: fixing only the trim threshold also pins
+// 2-vCPU virtual machine page faults run at ~220 MB/s: touching a fresh 268 MB block 50 times
+// took 59 s, 1.2 s with the heap kept; a BSP fine-tune ran > 4x slower (43 % system time), and
+// the stage-1 U-Net forward 10-15 % slower (docs/benchmarks.md). Both settings are needed: fixing only the trim threshold also pins
 // the mmap threshold at 128 KB (4x slower). An explicit GLIBC_TUNABLES or DIMR_DEFAULT_MALLOC=1
 // keeps glibc's behaviour.
 void TuneAllocator() {
@@ -49,7 +49,10 @@ void TuneAllocator() {
   if (const char* v = std::getenv("DIMR_DEFAULT_MALLOC"); v != nullptr && std::string(v) == "1") {
     return;
   }
-  mallopt(M_MMAP_THRESHOLD, 32 << 20);  // the largest value glibc accepts (64-bit)
+  // 1 GB: BSP training allocates 268 MB tensors (batch 32 x 2048 points x 1024 planes), which
+  // glibc's 32 MB dynamic maximum still maps and unmaps on every step. Older glibc refuses
+  // values above 32 MB; fall back to that.
+  if (mallopt(M_MMAP_THRESHOLD, 1 << 30) == 0) mallopt(M_MMAP_THRESHOLD, 32 << 20);
   mallopt(M_TRIM_THRESHOLD, 1 << 30);
 #endif
 }
