@@ -53,7 +53,9 @@ void TuneAllocator() {
   // glibc's 32 MB dynamic maximum still maps and unmaps on every step. Older glibc refuses
   // values above 32 MB; fall back to that.
   if (mallopt(M_MMAP_THRESHOLD, 1 << 30) == 0) mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  // Never trim: with a 1 GB threshold glibc still shrank the heap by brk when more than that
+  // was free at once (a BSP training step frees ~1.5 GB), and re-faulted it on the next step.
+  mallopt(M_TRIM_THRESHOLD, -1);
 #endif
 }
 
