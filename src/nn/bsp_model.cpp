@@ -437,10 +437,11 @@ std::vector<std::vector<int>> BspModel::ConvexPlanes() const {
 }
 
 std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int cad_class,
-                                              const Eigen::MatrixX3f& points,
-                                              double dilation) const {
-  if (!(dilation >= 0) || !std::isfinite(dilation)) {
-    throw InvalidArgument("Occupancy: dilation must be finite and >= 0");
+                                              const Eigen::MatrixX3f& points, double dilation,
+                                              double distance_dilation) const {
+  if (!(dilation >= 0) || !std::isfinite(dilation) || !(distance_dilation >= 0) ||
+      !std::isfinite(distance_dilation)) {
+    throw InvalidArgument("Occupancy: dilations must be finite and >= 0");
   }
   const auto& c = impl_->config;
   Eigen::MatrixXf planes = DecodePlanes(latent.head(c.latent_dim), cad_class);
@@ -448,6 +449,10 @@ std::vector<std::uint8_t> BspModel::Occupancy(const Eigen::VectorXf& latent, int
   auto P = torch::from_blob(planes.data(), {4, c.num_planes}, torch::kFloat);  // col-major P x 4
   // Eigen stores P x 4 column-major: memory is [4][P], i.e. exactly a row-major [4, P].
   auto planes_t = P.clone().unsqueeze(0).to(impl_->device);
+  if (distance_dilation > 0) {                          // d -= distance * |(a, b, c)|
+    auto normals = planes_t.slice(1, 0, 3).norm(2, 1);  // [1, P]
+    planes_t.select(1, 3).sub_(normals * distance_dilation);
+  }
   auto B =
       (impl_->net->generator->convex_layer_weights.detach() > kConvexThreshold).to(torch::kFloat);
   std::vector<std::uint8_t> out(static_cast<std::size_t>(points.rows()));
@@ -528,7 +533,8 @@ BspModel::Refined BspModel::RefineLatent(const Eigen::VectorXf& latent, const Bs
   return r;
 }
 
-double BspModel::EvaluateIoU(const BspDataset& data, double dilation) const {
+double BspModel::EvaluateIoU(const BspDataset& data, double dilation,
+                             double distance_dilation) const {
   CheckDataset(data, impl_->config, "evaluation set");
   if (data.samples.empty()) return 0.0;
   const int R = data.resolution;
@@ -541,7 +547,8 @@ double BspModel::EvaluateIoU(const BspDataset& data, double dilation) const {
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     const Eigen::VectorXf mu =
         codes.row(static_cast<Eigen::Index>(s)).head(impl_->config.latent_dim);
-    const auto pred = Occupancy(mu, data.samples[s].cad_class, centers, dilation);
+    const auto pred =
+        Occupancy(mu, data.samples[s].cad_class, centers, dilation, distance_dilation);
     const auto& sample = data.samples[s];
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
     std::size_t inter = 0, uni = 0;
@@ -564,8 +571,10 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   if (!(opt.loss_dilation >= 0) || !std::isfinite(opt.loss_dilation)) {
     throw InvalidArgument("BspTrainOptions: loss_dilation must be finite and >= 0");
   }
-  if (!(opt.val_dilation >= 0) || !std::isfinite(opt.val_dilation)) {
-    throw InvalidArgument("BspTrainOptions: val_dilation must be finite and >= 0");
+  if (!(opt.val_dilation >= 0) || !std::isfinite(opt.val_dilation) ||
+      !(opt.val_distance_dilation >= 0) || !std::isfinite(opt.val_distance_dilation)) {
+    throw InvalidArgument(
+        "BspTrainOptions: val_dilation and val_distance_dilation must be finite and >= 0");
   }
   if (opt.batch_size < 1 || opt.points_per_sample < 2) {
     throw InvalidArgument("BspTrainOptions: batch_size >= 1 and points_per_sample >= 2 required");
@@ -790,7 +799,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     const bool out_of_time = opt.max_minutes > 0 && minutes > opt.max_minutes;
     if (!val.samples.empty() &&
         ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {
-      if (phase > 0) entry.val_iou = EvaluateIoU(val, opt.val_dilation);
+      if (phase > 0) entry.val_iou = EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation);
     }
     logs.push_back(entry);
     if (log) log(entry);

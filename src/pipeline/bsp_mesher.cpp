@@ -52,6 +52,28 @@ void CheckDilation(float dilation) {
 
 }  // namespace
 
+Eigen::MatrixXf DistanceDilatedPlanes(const Eigen::MatrixXf& planes, float distance) {
+  if (planes.cols() != 4) {
+    throw InvalidArgument("BSP planes must be P x 4, got " + std::to_string(planes.rows()) + " x " +
+                          std::to_string(planes.cols()));
+  }
+  CheckDilation(distance);
+  Eigen::MatrixXf out = planes;
+  if (distance > 0.0f) out.col(3) -= distance * planes.leftCols(3).rowwise().norm();
+  return out;
+}
+
+std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
+                                       const std::vector<std::vector<int>>& convex_planes,
+                                       const Eigen::MatrixX3f& points,
+                                       const BspMeshOptions& options) {
+  if (options.distance_dilation == 0.0f) {
+    return BspOccupancy(planes, convex_planes, points, options.inside_threshold, options.dilation);
+  }
+  return BspOccupancy(DistanceDilatedPlanes(planes, options.distance_dilation), convex_planes,
+                      points, options.inside_threshold, options.dilation);
+}
+
 std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
                                        const Eigen::MatrixX3f& points, float inside_threshold,
@@ -72,10 +94,16 @@ std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
   return out;
 }
 
-BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
+BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& input_planes,
                              const std::vector<std::vector<int>>& convex_planes,
                              const BspMeshOptions& options) {
-  CheckInputs(planes, convex_planes);
+  CheckInputs(input_planes, convex_planes);
+  CheckDilation(options.distance_dilation);
+  const Eigen::MatrixXf shifted =
+      options.distance_dilation > 0.0f
+          ? DistanceDilatedPlanes(input_planes, options.distance_dilation)
+          : Eigen::MatrixXf();
+  const Eigen::MatrixXf& planes = options.distance_dilation > 0.0f ? shifted : input_planes;
   if (options.grid < 2 || options.grid > 256) {
     throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
   }

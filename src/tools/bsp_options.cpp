@@ -6,13 +6,15 @@
 #include <stdexcept>
 
 #include "dimr/geometry/error.h"
+#include "dimr/pipeline/bsp_mesher.h"
 #include "tools/model_card.h"
 
 namespace dimr::tools {
+namespace {
 
-float ResolveBspDilation(const std::string& model_path, float requested) {
+float ResolveCardValue(const std::string& model_path, const char* key, float requested) {
   if (requested >= 0.0f) return requested;
-  const std::optional<std::string> value = ReadModelCardValue(model_path, "recommended_dilation");
+  const std::optional<std::string> value = ReadModelCardValue(model_path, key);
   if (!value) return 0.0f;
   try {
     std::size_t used = 0;
@@ -22,14 +24,33 @@ float ResolveBspDilation(const std::string& model_path, float requested) {
     return d;
   } catch (const std::exception&) {
     throw ParseError(ModelCardPath(model_path),
-                     "recommended_dilation must be a number >= 0, got '" + *value + "'");
+                     std::string(key) + " must be a number >= 0, got '" + *value + "'");
   }
 }
 
-void AddBspDilationOption(CLI::App& app, float* dilation) {
-  app.add_option("--dilation", *dilation,
+}  // namespace
+
+float ResolveBspDilation(const std::string& model_path, float requested) {
+  return ResolveCardValue(model_path, "recommended_dilation", requested);
+}
+
+BspDilation ApplyBspDilation(const std::string& model_path, const BspDilation& requested,
+                             pipeline::BspMeshOptions* options) {
+  BspDilation d;
+  d.plane = ResolveBspDilation(model_path, requested.plane);
+  d.distance = ResolveCardValue(model_path, "recommended_distance_dilation", requested.distance);
+  options->dilation = d.plane;
+  options->distance_dilation = d.distance;
+  return d;
+}
+
+void AddBspDilationOption(CLI::App& app, BspDilation* dilation) {
+  app.add_option("--dilation", dilation->plane,
                  "move every BSP plane outwards by this much (plane units) for occupancy and "
                  "meshes; default: the model card's recommended_dilation, else 0 (reference)");
+  app.add_option("--distance-dilation", dilation->distance,
+                 "move every BSP face outwards by this distance (normalised cube [-1, 1]^3); "
+                 "default: the model card's recommended_distance_dilation, else 0");
 }
 
 }  // namespace dimr::tools

@@ -43,7 +43,8 @@ struct TrainArgs {
   double loss_dilation = 0.0;
   std::string latent_targets;  // pool file (dimr encode-pool) whose mu are distillation targets
   double latent_weight = 1.0, recon_weight = 1.0;
-  double val_dilation = -1.0;  // < 0: the --init model card's recommended_dilation (else 0)
+  // Decoding of the logged validation IoU; < 0: the --init model card's values (else 0).
+  BspDilation val_dilation;
 };
 
 // One target mu per training sample, looked up by model id in a pool file; every sample must
@@ -86,7 +87,8 @@ nn::BspConfig ConfigFromArg(const std::string& text) {
 
 void WriteModelCard(const std::string& dir, const nn::BspModel& model, const TrainArgs& a,
                     const std::string& command, const std::vector<nn::BspEpochLog>& logs,
-                    double val_iou, double val_dilation, const std::string& weights) {
+                    double val_iou, double val_dilation, double val_distance_dilation,
+                    const std::string& weights) {
   std::ofstream y(dir + "/model.yaml");
   y << "name: bsp_cvae\n";
   y << "description: BSP-CVAE shape autoencoder (class-conditioned), dimr-method.md sections 5-6\n";
@@ -110,11 +112,13 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
-  y << "  val_volumetric_iou_32: " << val_iou << "   # decoding dilation " << val_dilation << "\n";
+  y << "  val_volumetric_iou_32: " << val_iou << "   # decoding dilation " << val_dilation
+    << ", distance dilation " << val_distance_dilation << "\n";
   if (!logs.empty()) y << "  final_recon_loss: " << logs.back().recon_loss << "\n";
-  if (val_dilation > 0) {
+  if (val_dilation > 0 || val_distance_dilation > 0) {
     y << "# decoding of the validation IoU (--val-dilation or the --init card), read by dimr bsp\n";
     y << "recommended_dilation: " << val_dilation << "\n";
+    y << "recommended_distance_dilation: " << val_distance_dilation << "\n";
   }
   y << "weights:\n";
   y << "  file: " << std::filesystem::path(weights).filename().string() << "\n";
@@ -159,8 +163,17 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
   nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
-  opt.val_dilation = a.val_dilation >= 0 ? a.val_dilation
-                                         : (a.init.empty() ? 0.0 : ResolveBspDilation(a.init, -1));
+  {
+    pipeline::BspMeshOptions val_decoding;
+    if (!a.init.empty()) {
+      ApplyBspDilation(a.init, a.val_dilation, &val_decoding);
+    } else {
+      val_decoding.dilation = std::max(0.0f, a.val_dilation.plane);
+      val_decoding.distance_dilation = std::max(0.0f, a.val_dilation.distance);
+    }
+    opt.val_dilation = val_decoding.dilation;
+    opt.val_distance_dilation = val_decoding.distance_dilation;
+  }
   opt.latent_target_weight = a.latent_weight;
   opt.recon_weight = a.recon_weight;
   if (!a.latent_targets.empty()) {
@@ -195,10 +208,13 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         << "," << e.beta << "," << e.val_iou << "," << e.seconds << "\n";
     csv.flush();
   });
-  const double val_iou = val.samples.empty() ? -1.0 : model.EvaluateIoU(val, opt.val_dilation);
+  const double val_iou = val.samples.empty()
+                             ? -1.0
+                             : model.EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation);
   const std::string weights = a.out + "/bsp.pt";
   model.Save(weights, a.fp16);
-  WriteModelCard(a.out, model, a, command, logs, val_iou, opt.val_dilation, weights);
+  WriteModelCard(a.out, model, a, command, logs, val_iou, opt.val_dilation,
+                 opt.val_distance_dilation, weights);
   std::printf("saved %s (val IoU %.4f), model card %s/model.yaml\n", weights.c_str(), val_iou,
               a.out.c_str());
 }
@@ -207,8 +223,8 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
 struct EvalArgs {
   std::string model, data, mesh_dir;
   int limit = 0;
-  float dilation = -1.0f;  // < 0: the model card's recommended value
-  int refine_steps = 0;    // latent refinement on the shape's own occupancy (0 = encoder only)
+  BspDilation dilation;  // < 0: the model card's recommended values
+  int refine_steps = 0;  // latent refinement on the shape's own occupancy (0 = encoder only)
   double refine_lr = 0.01;
 };
 
@@ -220,8 +236,9 @@ void RunEval(const EvalArgs& a) {
   }
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   const auto convexes = model.ConvexPlanes();
-  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
-  std::printf("dilation %.3g\n", dilation);
+  pipeline::BspMeshOptions mopt;
+  const BspDilation dilation = tools::ApplyBspDilation(a.model, a.dilation, &mopt);
+  std::printf("dilation %.3g, distance dilation %.3g\n", dilation.plane, dilation.distance);
   const int R = data.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
   std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
@@ -232,10 +249,7 @@ void RunEval(const EvalArgs& a) {
     Eigen::VectorXf mu = codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
     if (a.refine_steps > 0) mu = model.RefineLatent(mu, sample, a.refine_steps, a.refine_lr).mu;
     const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
-    pipeline::BspMeshOptions mopt;
-    mopt.dilation = dilation;
-    const auto occ =
-        pipeline::BspOccupancy(planes, convexes, centers, mopt.inside_threshold, mopt.dilation);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, centers, mopt);
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
     const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
     const int c = sample.cad_class;
@@ -295,7 +309,7 @@ void RunEncodePool(const PoolArgs& a) {
 struct InterpArgs {
   std::string model, data, out_dir;
   int a = 0, b = 1, steps = 5;
-  float dilation = -1.0f;
+  BspDilation dilation;
 };
 
 void RunInterpolate(const InterpArgs& a) {
@@ -312,7 +326,7 @@ void RunInterpolate(const InterpArgs& a) {
   const auto zb = model.Encode(sb.grid, sb.cad_class).first;
   const auto convexes = model.ConvexPlanes();
   pipeline::BspMeshOptions mopt;
-  mopt.dilation = tools::ResolveBspDilation(a.model, a.dilation);
+  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
   std::filesystem::create_directories(a.out_dir);
   for (int i = 0; i < a.steps; ++i) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(i) / (a.steps - 1);
@@ -328,7 +342,7 @@ void RunInterpolate(const InterpArgs& a) {
 struct BenchArgs {
   std::string model, data, json;
   int count = 20;
-  float dilation = -1.0f;
+  BspDilation dilation;
 };
 
 double Median(std::vector<double> v) {
@@ -348,7 +362,7 @@ void RunBench(const BenchArgs& a) {
   const double encode_s = std::chrono::duration<double>(Clock::now() - t0).count();
   const auto convexes = model.ConvexPlanes();
   pipeline::BspMeshOptions mopt;
-  mopt.dilation = tools::ResolveBspDilation(a.model, a.dilation);
+  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
   std::vector<double> decode_ms, mesh_ms, total_ms, tris;
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     const Eigen::VectorXf mu =
@@ -427,9 +441,13 @@ void SetupTrain(CLI::App& app) {
                  "weight of the reconstruction loss; 0 (with --latent-targets and "
                  "--freeze-decoder) trains the encoder by regression alone, without decoding")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--val-dilation", a->val_dilation,
-                 "decoding dilation of the logged validation IoU (default: the --init model "
+  app.add_option("--val-dilation", a->val_dilation.plane,
+                 "plane dilation of the logged validation IoU (default: the --init model "
                  "card's recommended_dilation, else 0)")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--val-distance-dilation", a->val_dilation.distance,
+                 "distance dilation of the logged validation IoU (default: the --init model "
+                 "card's recommended_distance_dilation, else 0)")
       ->check(CLI::NonNegativeNumber);
   app.callback([a, &app, config_opt]() {
     a->fp16 = !a->fp32;

@@ -114,7 +114,7 @@ void SetupPrepare(CLI::App& app) {
 
 // ---------------------------------------------------------------- render
 struct RenderArgs {
-  float dilation = -1.0f;
+  BspDilation dilation;
   std::string model, out, interp_out;
   int per_class = 3;
   std::uint64_t seed = 3;
@@ -127,10 +127,8 @@ struct RenderArgs {
 tools::RenderTile Reconstruct(const nn::BspModel& model,
                               const std::vector<std::vector<int>>& convexes,
                               const Eigen::VectorXf& mu, int c, const geometry::Vec3& scale,
-                              const nn::BspSample* sample, float dilation) {
+                              const nn::BspSample* sample, const pipeline::BspMeshOptions& mopt) {
   const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-  pipeline::BspMeshOptions mopt;
-  mopt.dilation = dilation;
   const pipeline::BspMeshResult r = pipeline::ExtractBspMesh(planes, convexes, mopt);
   tools::RenderTile t;
   t.mesh = r.mesh;
@@ -139,8 +137,7 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
     t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
   if (sample) {
     const int R = model.config().resolution;
-    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R),
-                                            mopt.inside_threshold, mopt.dilation);
+    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R), mopt);
     const double iou = pipeline::OccupancyIoU(occ, sample->iou_grid);
     t.label = "bsp iou " + std::to_string(static_cast<int>(100 * iou));
   }
@@ -150,7 +147,8 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
 void RunRender(const RenderArgs& a) {
   const nn::BspModel model = nn::BspModel::Load(a.model);
   const auto convexes = model.ConvexPlanes();
-  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
+  pipeline::BspMeshOptions mopt;
+  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
   pipeline::BspSampleOptions opt;
   opt.resolution = model.config().resolution;
   auto original = [&](int c, int i, nn::BspSample* sample) {
@@ -170,7 +168,7 @@ void RunRender(const RenderArgs& a) {
       nn::BspSample sample;
       tools::RenderTile orig = original(c, i, &sample);
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
-      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample, dilation));
+      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample, mopt));
       tiles.insert(tiles.end() - 1, std::move(orig));
     }
   }
@@ -189,7 +187,7 @@ void RunRender(const RenderArgs& a) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(s) / (a.steps - 1);
     const geometry::Vec3 scale = (1 - t) * ta.scale + t * tb.scale;
     tools::RenderTile tile = Reconstruct(model, convexes, pipeline::InterpolateCodes(za, zb, t), c,
-                                         scale, nullptr, dilation);
+                                         scale, nullptr, mopt);
     tile.label = "t " + std::to_string(static_cast<int>(std::lround(100 * t)));
     strip.push_back(std::move(tile));
   }
@@ -218,7 +216,7 @@ const Registrar kRender("bsp", "render",
 
 // ---------------------------------------------------------------- eval-cad
 struct EvalCadArgs {
-  float dilation = -1.0f;
+  BspDilation dilation;
   std::string model;
   int per_class = 25;
   std::uint64_t seed = 3;
@@ -234,10 +232,9 @@ void RunEvalCad(const EvalCadArgs& a) {
   opt.resolution = model.config().resolution;
   const int R = opt.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
-  const float dilation = tools::ResolveBspDilation(a.model, a.dilation);
   pipeline::BspMeshOptions mopt;
-  mopt.dilation = dilation;
-  std::printf("dilation %.3g\n\n", dilation);
+  const BspDilation dilation = tools::ApplyBspDilation(a.model, a.dilation, &mopt);
+  std::printf("dilation %.3g, distance dilation %.3g\n\n", dilation.plane, dilation.distance);
   std::printf(
       "| class | shapes | IoU@32^3 | Chamfer (x 1e-2) | empty meshes |\n|---|---|---|---|---|\n");
   double all_iou = 0, all_cd = 0;
@@ -252,8 +249,7 @@ void RunEvalCad(const EvalCadArgs& a) {
           pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
       const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
       const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-      const auto occ =
-          pipeline::BspOccupancy(planes, convexes, centers, mopt.inside_threshold, dilation);
+      const auto occ = pipeline::BspOccupancy(planes, convexes, centers, mopt);
       iou_sum += pipeline::OccupancyIoU(occ, sample.iou_grid);
       ++n;
       const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes, mopt).mesh;

@@ -40,9 +40,9 @@ const std::map<std::string, std::string>& GroupDescriptions() {
 // such blocks back to the kernel (mmap / trim), so every step page-faults them in again. On this
 // 2-vCPU virtual machine page faults run at ~220 MB/s: touching a fresh 268 MB block 50 times
 // took 59 s, 1.2 s with the heap kept; a BSP fine-tune ran > 4x slower (43 % system time), and
-// the stage-1 U-Net forward 10-15 % slower (docs/benchmarks.md). Both settings are needed: fixing only the trim threshold also pins
-// the mmap threshold at 128 KB (4x slower). An explicit GLIBC_TUNABLES or DIMR_DEFAULT_MALLOC=1
-// keeps glibc's behaviour.
+// the stage-1 U-Net forward 10-15 % slower (docs/benchmarks.md). Both settings are needed: fixing
+// only the trim threshold also pins the mmap threshold at 128 KB (4x slower). An explicit
+// GLIBC_TUNABLES or DIMR_DEFAULT_MALLOC=1 keeps glibc's behaviour.
 void TuneAllocator() {
 #ifdef __GLIBC__
   if (std::getenv("GLIBC_TUNABLES") != nullptr) return;

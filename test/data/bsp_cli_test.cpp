@@ -39,7 +39,7 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   // No card: the reference (0).
   std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
   ASSERT_EQ(rc, 0) << out;
-  EXPECT_NE(out.find("dilation 0\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("dilation 0, distance dilation 0\n"), std::string::npos) << out;
   const double iou0 = AllIoU(out);
   ASSERT_GE(iou0, 0.0) << out;
 
@@ -47,7 +47,7 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   std::ofstream(d + "/model.yaml") << "name: bsp_cvae\nrecommended_dilation: 0.3   # chosen\n";
   std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
   ASSERT_EQ(rc, 0) << out;
-  EXPECT_NE(out.find("dilation 0.3\n"), std::string::npos) << out;
+  EXPECT_NE(out.find("dilation 0.3, distance dilation 0\n"), std::string::npos) << out;
   const double iou3 = AllIoU(out);
   ASSERT_GE(iou3, 0.0) << out;
   EXPECT_LE(iou3, 1.0);
@@ -58,6 +58,25 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
       RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin --dilation 0");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_DOUBLE_EQ(AllIoU(out), iou0);
+
+  // The distance dilation from the card, alone or with the plane dilation; an option wins.
+  std::ofstream(d + "/model.yaml")
+      << "recommended_dilation: 0\nrecommended_distance_dilation: 0.01\n";
+  std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("dilation 0, distance dilation 0.01\n"), std::string::npos) << out;
+  const double iou_dist = AllIoU(out);
+  EXPECT_NE(iou_dist, iou0);
+  EXPECT_NE(iou_dist, iou3);
+  std::tie(rc, out) =
+      RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin --distance-dilation 0");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_DOUBLE_EQ(AllIoU(out), iou0);
+  std::ofstream(d + "/model.yaml") << "recommended_distance_dilation: far\n";
+  std::tie(rc, out) = RunCli("bsp eval --model " + d + "/bsp.pt --data " + d + "/data.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("recommended_distance_dilation"), std::string::npos) << out;
+  std::ofstream(d + "/model.yaml") << "name: bsp_cvae\nrecommended_dilation: 0.3   # chosen\n";
 
   // Latent refinement on the shapes' own occupancy samples raises the mean IoU (0.724 ->
   // 0.734 on these 8 shapes with the bundled model).

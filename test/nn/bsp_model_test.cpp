@@ -352,5 +352,47 @@ TEST(BspModel, LatentDistillationPullsTheEncoderOntoItsTargets) {
   std::filesystem::remove(path);
 }
 
+// Occupancy with a distance dilation equals the discrete BSP rule evaluated by hand on the
+// decoded planes with every face moved by the distance (d -= distance * |n|).
+TEST(BspModel, OccupancyDistanceDilationMatchesTheShiftedPlanes) {
+  BspModel model(TinyConfig(), 3);
+  const BspDataset data = TinyData();
+  model.Train(data, BspDataset(), TinyTraining(30, 10));
+  const Eigen::VectorXf z = model.Encode(data.samples[0].grid, 0).first;
+  const Eigen::MatrixXf planes = model.DecodePlanes(z, 0);
+  const auto convexes = model.ConvexPlanes();
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  Eigen::MatrixX3f pts(2000, 3);
+  for (int i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), u(rng);
+  std::vector<int> counts;
+  for (const double distance : {0.0, 0.05, 0.2}) {
+    const auto occ = model.Occupancy(z, 0, pts, 0.02, distance);
+    int inside = 0, mismatches = 0;
+    for (int i = 0; i < pts.rows(); ++i) {
+      bool in = false;
+      for (const auto& ids : convexes) {
+        if (ids.empty()) continue;
+        double sum = 0;
+        for (int p : ids) {
+          const double v = planes.row(p).head(3).dot(pts.row(i)) + planes(p, 3) - 0.02 -
+                           distance * planes.row(p).head(3).norm();
+          sum += std::max(0.0, v);
+        }
+        if (sum < 0.01) in = true;
+      }
+      inside += in;
+      mismatches += in != (occ[static_cast<std::size_t>(i)] != 0);
+    }
+    EXPECT_LE(mismatches, 2) << "distance " << distance;  // float round-off at the boundary
+    counts.push_back(inside);
+  }
+  // The box decodes to something, and moving the faces out grows it.
+  EXPECT_GT(counts[0], 50);
+  EXPECT_GT(counts[2], counts[1]);
+  EXPECT_GT(counts[1], counts[0]);
+  EXPECT_THROW(model.Occupancy(z, 0, pts, 0.0, -0.1), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::nn

@@ -129,6 +129,45 @@ TEST(BspMesher, DilationGrowsPartsAndOccupancyAlike) {
   EXPECT_THROW(BspOccupancy(s.planes, s.convexes, pts, 0.01f, -1.0f), InvalidArgument);
 }
 
+// A distance dilation moves every face by the same Euclidean distance whatever the scale of
+// its plane; a plane-unit dilation does not. Box [-0.5, 0.5]^3 whose x planes are scaled by 4:
+// plane units grow x by 0.1 / 4 and y, z by 0.1, the distance 0.1 grows all three by 0.1.
+TEST(BspMesher, DistanceDilationMovesEveryFaceByTheSameDistance) {
+  Scene s;
+  s.convexes.resize(1);
+  AddBox(&s.planes, &s.convexes[0], Eigen::Vector3f::Constant(-0.5f),
+         Eigen::Vector3f::Constant(0.5f));
+  s.planes.topRows(2) *= 4.0f;  // x <= 0.5 as 4x - 2 <= 0, -x <= 0.5 likewise
+  const Eigen::MatrixXf shifted = DistanceDilatedPlanes(s.planes, 0.1f);
+  EXPECT_FLOAT_EQ(shifted(0, 3), -2.0f - 0.4f);
+  EXPECT_FLOAT_EQ(shifted(2, 3), -0.5f - 0.1f);
+  EXPECT_EQ((shifted.leftCols(3) - s.planes.leftCols(3)).cwiseAbs().maxCoeff(), 0.f);
+  BspMeshOptions dist;
+  dist.distance_dilation = 0.1f;
+  EXPECT_NEAR(ExtractBspMesh(s.planes, s.convexes, dist).mesh.SignedVolume(), 1.2 * 1.2 * 1.2,
+              1e-5);
+  BspMeshOptions plane;
+  plane.dilation = 0.1f;
+  EXPECT_NEAR(ExtractBspMesh(s.planes, s.convexes, plane).mesh.SignedVolume(), 1.05 * 1.2 * 1.2,
+              1e-5);
+  // Both together add up per face: x by 0.1 + 0.025, y and z by 0.1 + 0.1.
+  BspMeshOptions both = dist;
+  both.dilation = 0.1f;
+  EXPECT_NEAR(ExtractBspMesh(s.planes, s.convexes, both).mesh.SignedVolume(), 1.25 * 1.4 * 1.4,
+              1e-5);
+  // The occupancy follows the same faces: x = 0.57 is inside with the distance, not without.
+  Eigen::MatrixX3f pts(2, 3);
+  pts << 0.57f, 0.f, 0.f, 0.f, 0.57f, 0.f;
+  EXPECT_EQ(BspOccupancy(s.planes, s.convexes, pts, dist), (std::vector<std::uint8_t>{1, 1}));
+  EXPECT_EQ(BspOccupancy(s.planes, s.convexes, pts, plane), (std::vector<std::uint8_t>{0, 1}));
+  EXPECT_EQ(BspOccupancy(s.planes, s.convexes, pts, BspMeshOptions()),
+            (std::vector<std::uint8_t>{0, 0}));
+  dist.distance_dilation = -0.1f;
+  EXPECT_THROW(ExtractBspMesh(s.planes, s.convexes, dist), InvalidArgument);
+  EXPECT_THROW(BspOccupancy(s.planes, s.convexes, pts, dist), InvalidArgument);
+  EXPECT_THROW(DistanceDilatedPlanes(Eigen::MatrixXf::Zero(2, 3), 0.1f), InvalidArgument);
+}
+
 TEST(BspMesher, RejectsBadInput) {
   Scene s = MakeScene();
   s.convexes[0].push_back(999);

@@ -77,6 +77,7 @@ struct BspTrainOptions {
   // Decoding dilation of the validation IoU logged during training (the decoding that is
   // shipped, e.g. the init model card's recommended_dilation); 0 = reference.
   double val_dilation = 0.0;
+  double val_distance_dilation = 0.0;
 };
 
 struct BspEpochLog {
@@ -123,12 +124,15 @@ class BspModel {
   std::vector<std::vector<int>> ConvexPlanes() const;
   // Occupancy (discrete BSP, inside iff min over convexes of the summed plane excess < 0.01)
   // of query points (N x 3) for a latent code.
-  // `dilation` moves every plane outwards (BspMeshOptions::dilation; 0 = the reference).
+  // `dilation` moves every plane outwards (BspMeshOptions::dilation; 0 = the reference),
+  // `distance_dilation` every face by that Euclidean distance (::distance_dilation).
   std::vector<std::uint8_t> Occupancy(const Eigen::VectorXf& latent, int cad_class,
-                                      const Eigen::MatrixX3f& points, double dilation = 0.0) const;
+                                      const Eigen::MatrixX3f& points, double dilation = 0.0,
+                                      double distance_dilation = 0.0) const;
   // Mean IoU between decoded (mu) and true occupancy on the grid of cell centres of `data`,
-  // decoding with `dilation`.
-  double EvaluateIoU(const BspDataset& data, double dilation = 0.0) const;
+  // decoding with both dilations.
+  double EvaluateIoU(const BspDataset& data, double dilation = 0.0,
+                     double distance_dilation = 0.0) const;
   // Latent refinement (auto-decoder style, for shapes whose occupancy is known, e.g. the CAD
   // pool): starting from `latent` (mu), `steps` Adam steps (learning rate `lr`) on the
   // discrete-phase reconstruction loss of the sample's inside/outside points, plus

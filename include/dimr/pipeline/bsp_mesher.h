@@ -24,6 +24,10 @@ struct BspMeshOptions {
   // reference. The decoder under-covers thin parts; a dilation chosen on validation shapes
   // counters that (docs/models.md).
   float dilation = 0.0f;
+  // Every face moved outwards by this Euclidean distance in the normalised cube [-1, 1]^3
+  // (a x + b y + c z + d <= distance_dilation * |(a, b, c)|), in addition to `dilation`. Unlike
+  // the plane-unit dilation it grows steep and shallow planes alike (docs/models.md).
+  float distance_dilation = 0.0f;
 };
 
 struct BspMeshResult {
@@ -46,6 +50,13 @@ std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
                                        const Eigen::MatrixX3f& points,
                                        float inside_threshold = 0.01f, float dilation = 0.0f);
+// The same with the threshold and both dilations of `options`.
+std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
+                                       const std::vector<std::vector<int>>& convex_planes,
+                                       const Eigen::MatrixX3f& points,
+                                       const BspMeshOptions& options);
+// planes with every face moved outwards by `distance` (d -= distance * |(a, b, c)|).
+Eigen::MatrixXf DistanceDilatedPlanes(const Eigen::MatrixXf& planes, float distance);
 
 // Cell centres of an R^3 grid over [-1, 1]^3 (x fastest), the points the BSP occupancy and
 // the IoU@R^3 are evaluated at.
