@@ -521,8 +521,9 @@ BspModel::Refined BspModel::RefineLatent(const Eigen::VectorXf& latent, const Bs
   torch::optim::Adam opt({z}, torch::optim::AdamOptions(lr));
   for (int step = 0; step < steps; ++step) {
     auto loss = recon_of(z) + prior_weight * torch::mean(torch::pow(z - start, 2));
-    opt.zero_grad();
-    loss.backward();
+    // The gradient of the code only: backward() would also compute (and accumulate into the
+    // shared model) the gradients of every decoder weight.
+    z.mutable_grad() = torch::autograd::grad({loss}, {z})[0];
     opt.step();
   }
   torch::NoGradGuard no_grad;
