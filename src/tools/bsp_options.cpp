@@ -30,14 +30,10 @@ float ResolveCardValue(const std::string& model_path, const char* key, float req
 
 }  // namespace
 
-float ResolveBspDilation(const std::string& model_path, float requested) {
-  return ResolveCardValue(model_path, "recommended_dilation", requested);
-}
-
 BspDilation ApplyBspDilation(const std::string& model_path, const BspDilation& requested,
                              pipeline::BspMeshOptions* options) {
   BspDilation d;
-  d.plane = ResolveBspDilation(model_path, requested.plane);
+  d.plane = ResolveCardValue(model_path, "recommended_dilation", requested.plane);
   d.distance = ResolveCardValue(model_path, "recommended_distance_dilation", requested.distance);
   options->dilation = d.plane;
   options->distance_dilation = d.distance;

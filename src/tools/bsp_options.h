@@ -21,12 +21,10 @@ struct BspDilation {
   float distance = -1.0f;
 };
 
-// The dilation to decode with: `requested` when >= 0; with a negative value the model card's
-// `recommended_dilation:` (model.yaml beside the weights), else 0 (the reference). Throws
-// dimr::ParseError naming the card for a malformed or negative value.
-float ResolveBspDilation(const std::string& model_path, float requested);
-// Both dilations (card keys recommended_dilation and recommended_distance_dilation), written
-// into `options`; returns the resolved pair.
+// The dilations to decode with, written into `options` and returned: each requested value
+// when >= 0; for a negative one the model card's `recommended_dilation:` /
+// `recommended_distance_dilation:` (model.yaml beside the weights), else 0 (the reference).
+// Throws dimr::ParseError naming the card for a malformed or negative value.
 BspDilation ApplyBspDilation(const std::string& model_path, const BspDilation& requested,
                              pipeline::BspMeshOptions* options);
 
