@@ -740,39 +740,32 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
             targets_all.index_select(0, torch::tensor(rows, torch::kLong).to(impl_->device));
         latent_mse = torch::mean(torch::pow(mu - target, 2));
       }
-      if (!decode) {  // regression onto the latent targets only
-        auto loss = opt.latent_target_weight * latent_mse + beta * kl;
-        optimizer.zero_grad();
-        loss.backward();
-        optimizer.step();
-        kl_sum += kl.item<double>();
-        latent_sum += latent_mse.item<double>();
-        ++batches;
-        continue;
-      }
-      auto z = opt.sample_latent ? mu + torch::randn_like(mu) * torch::exp(0.5 * logvar) : mu;
-      auto planes = net->Planes(z, classes);
-      auto h1 = BspNetImpl::PlaneExcess(pts, planes, opt.loss_dilation);
-      auto T = net->generator->convex_layer_weights;
-      auto W = net->generator->concave_layer_weights;
-      torch::Tensor recon;
-      torch::Tensor reg = torch::zeros({}, pts.options());
-      if (phase == 0) {
-        auto h2 = torch::clamp(1 - torch::matmul(h1, T), 0, 1);
-        auto h3 = torch::clamp(torch::matmul(h2, W), 0, 1);
-        recon = torch::mean(torch::pow(occ - h3, 2));
-        // Weight regularisers of the continuous phase (sums, as the reference).
-        reg = torch::sum(torch::abs(W - 1)) + torch::sum(torch::relu(T - 1) + torch::relu(-T));
-      } else {
-        auto Bm = (T.detach() > kConvexThreshold).to(torch::kFloat);
-        auto h2 = torch::matmul(h1, Bm);
-        auto h3 = std::get<0>(h2.min(2, /*keepdim=*/true));
-        recon =
-            torch::mean((1 - occ) * (1 - torch::clamp_max(h3, 1)) + occ * torch::clamp_min(h3, 0));
-        if (phase == 2) {
-          auto inside_c = (h2 < kConvexThreshold).to(torch::kFloat);
-          auto multi = (inside_c.sum(2, true) > 1).to(torch::kFloat);
-          recon = recon - torch::mean(h2 * occ * inside_c * multi);
+      // Without decoding (recon_weight 0) the encoder regresses the latent targets only.
+      torch::Tensor recon = torch::zeros({}, mu.options());
+      torch::Tensor reg = torch::zeros({}, mu.options());
+      if (decode) {
+        auto z = opt.sample_latent ? mu + torch::randn_like(mu) * torch::exp(0.5 * logvar) : mu;
+        auto planes = net->Planes(z, classes);
+        auto h1 = BspNetImpl::PlaneExcess(pts, planes, opt.loss_dilation);
+        auto T = net->generator->convex_layer_weights;
+        auto W = net->generator->concave_layer_weights;
+        if (phase == 0) {
+          auto h2 = torch::clamp(1 - torch::matmul(h1, T), 0, 1);
+          auto h3 = torch::clamp(torch::matmul(h2, W), 0, 1);
+          recon = torch::mean(torch::pow(occ - h3, 2));
+          // Weight regularisers of the continuous phase (sums, as the reference).
+          reg = torch::sum(torch::abs(W - 1)) + torch::sum(torch::relu(T - 1) + torch::relu(-T));
+        } else {
+          auto Bm = (T.detach() > kConvexThreshold).to(torch::kFloat);
+          auto h2 = torch::matmul(h1, Bm);
+          auto h3 = std::get<0>(h2.min(2, /*keepdim=*/true));
+          recon = torch::mean((1 - occ) * (1 - torch::clamp_max(h3, 1)) +
+                              occ * torch::clamp_min(h3, 0));
+          if (phase == 2) {
+            auto inside_c = (h2 < kConvexThreshold).to(torch::kFloat);
+            auto multi = (inside_c.sum(2, true) > 1).to(torch::kFloat);
+            recon = recon - torch::mean(h2 * occ * inside_c * multi);
+          }
         }
       }
       auto loss = opt.recon_weight * recon + reg + beta * kl;

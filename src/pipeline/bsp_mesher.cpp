@@ -67,9 +67,6 @@ std::vector<std::uint8_t> BspOccupancy(const Eigen::MatrixXf& planes,
                                        const std::vector<std::vector<int>>& convex_planes,
                                        const Eigen::MatrixX3f& points,
                                        const BspMeshOptions& options) {
-  if (options.distance_dilation == 0.0f) {
-    return BspOccupancy(planes, convex_planes, points, options.inside_threshold, options.dilation);
-  }
   return BspOccupancy(DistanceDilatedPlanes(planes, options.distance_dilation), convex_planes,
                       points, options.inside_threshold, options.dilation);
 }
@@ -98,12 +95,7 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& input_planes,
                              const std::vector<std::vector<int>>& convex_planes,
                              const BspMeshOptions& options) {
   CheckInputs(input_planes, convex_planes);
-  CheckDilation(options.distance_dilation);
-  const Eigen::MatrixXf shifted =
-      options.distance_dilation > 0.0f
-          ? DistanceDilatedPlanes(input_planes, options.distance_dilation)
-          : Eigen::MatrixXf();
-  const Eigen::MatrixXf& planes = options.distance_dilation > 0.0f ? shifted : input_planes;
+  const Eigen::MatrixXf planes = DistanceDilatedPlanes(input_planes, options.distance_dilation);
   if (options.grid < 2 || options.grid > 256) {
     throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
   }
