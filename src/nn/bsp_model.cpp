@@ -670,6 +670,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
                       .to(impl_->device);
   }
   std::vector<BspEpochLog> logs;
+  double best_val_iou = 0.0;  // val_iou is -1 when not evaluated
   const auto t_start = std::chrono::steady_clock::now();
   auto checkpoint = [&](int epoch_done) {
     if (opt.checkpoint_path.empty()) return;
@@ -692,7 +693,10 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     for (auto& group : optimizer.param_groups()) {
       static_cast<torch::optim::AdamOptions&>(group.options()).lr(lr);
     }
-    const double beta = opt.kl_weight * static_cast<double>(epoch + 1) / total_epochs;
+    const int warmup = opt.kl_warmup_epochs < 0 ? total_epochs : opt.kl_warmup_epochs;
+    const double beta =
+        warmup == 0 ? opt.kl_weight
+                    : opt.kl_weight * std::min(1.0, static_cast<double>(epoch + 1) / warmup);
     net->train();
     if (opt.freeze_decoder) net->decoder->eval();  // BatchNorm as at inference, stats frozen
     std::vector<std::size_t> order(train.samples.size());
@@ -794,6 +798,10 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     if (!val.samples.empty() &&
         ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {
       if (phase > 0) entry.val_iou = EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation);
+    }
+    if (!opt.best_path.empty() && entry.val_iou > best_val_iou) {
+      best_val_iou = entry.val_iou;
+      Save(opt.best_path, /*half=*/false);
     }
     logs.push_back(entry);
     if (log) log(entry);

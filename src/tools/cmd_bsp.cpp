@@ -35,6 +35,8 @@ struct TrainArgs {
   int batch = 16, points = 1024, threads = 0, checkpoint_every = 5;
   double lr = 1e-4, kl = 0.01, max_minutes = 0, phase0_minutes = 0;
   int lr_step = 200;
+  int kl_warmup = -1;      // epochs of linear KL annealing; < 0: the whole run, 0: constant
+  bool keep_best = false;  // ship the epoch with the best validation IoU, not the last
   std::uint64_t seed = 1;
   bool fp16 = true;
   bool fp32 = false;
@@ -87,7 +89,7 @@ nn::BspConfig ConfigFromArg(const std::string& text) {
 
 void WriteModelCard(const std::string& dir, const nn::BspModel& model, const TrainArgs& a,
                     const std::string& command, const std::vector<nn::BspEpochLog>& logs,
-                    double val_iou, double val_dilation, double val_distance_dilation,
+                    int best_epoch, double val_iou, double val_dilation, double val_distance_dilation,
                     const std::string& weights) {
   std::ofstream y(dir + "/model.yaml");
   y << "name: bsp_cvae\n";
@@ -110,6 +112,10 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
       << ", reconstruction weight " << a.recon_weight << "\n";
   }
   y << "  epochs_completed: " << (logs.empty() ? 0 : logs.back().epoch) << "\n";
+  if (a.kl_warmup >= 0) y << "  kl_warmup_epochs: " << a.kl_warmup << "\n";
+  if (best_epoch > 0) {
+    y << "  selected_epoch: " << best_epoch << "   # --keep-best: best validation IoU\n";
+  }
   y << "  device: " << a.device << "\n";
   y << "metrics:\n";
   y << "  val_volumetric_iou_32: " << val_iou << "   # decoding dilation " << val_dilation
@@ -145,6 +151,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.points_per_sample = a.points;
   opt.learning_rate = a.lr;
   opt.kl_weight = a.kl;
+  opt.kl_warmup_epochs = a.kl_warmup;
   opt.seed = a.seed;
   opt.threads = a.threads;
   opt.device = a.device;
@@ -160,6 +167,11 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   }
   std::filesystem::create_directories(a.out);
   opt.checkpoint_path = a.out + "/checkpoint.pt";
+  if (a.keep_best) {
+    if (a.val.empty()) throw InvalidArgument("--keep-best needs --val (the selection data)");
+    opt.best_path = a.out + "/best.pt";
+    std::filesystem::remove(opt.best_path);  // a kept model of an earlier run is not a candidate
+  }
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
   nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
@@ -208,12 +220,21 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
         << "," << e.beta << "," << e.val_iou << "," << e.seconds << "\n";
     csv.flush();
   });
+  int best_epoch = 0;
+  if (!opt.best_path.empty() && std::filesystem::exists(opt.best_path)) {
+    double best = -1.0;
+    for (const auto& e : logs) {
+      if (e.val_iou > best) best = e.val_iou, best_epoch = e.epoch;
+    }
+    model = nn::BspModel::Load(opt.best_path);
+    std::printf("kept epoch %d (best validation IoU %.4f of this run)\n", best_epoch, best);
+  }
   const double val_iou = val.samples.empty()
                              ? -1.0
                              : model.EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation);
   const std::string weights = a.out + "/bsp.pt";
   model.Save(weights, a.fp16);
-  WriteModelCard(a.out, model, a, command, logs, val_iou, opt.val_dilation,
+  WriteModelCard(a.out, model, a, command, logs, best_epoch, val_iou, opt.val_dilation,
                  opt.val_distance_dilation, weights);
   std::printf("saved %s (val IoU %.4f), model card %s/model.yaml\n", weights.c_str(), val_iou,
               a.out.c_str());
@@ -411,6 +432,12 @@ void SetupTrain(CLI::App& app) {
       ->check(CLI::Range(2, 1 << 20));
   app.add_option("--lr", a->lr);
   app.add_option("--kl", a->kl, "final KL weight (linear annealing)");
+  app.add_option("--kl-warmup", a->kl_warmup,
+                 "epochs over which the KL weight rises linearly to --kl (default: the whole "
+                 "run; 0 = constant, e.g. when fine-tuning a model trained with that weight)");
+  app.add_flag("--keep-best", a->keep_best,
+               "save the epoch with the best validation IoU of this run (evaluated every "
+               "--checkpoint-every epochs) instead of the last one; needs --val");
   app.add_option("--seed", a->seed);
   app.add_option("--threads", a->threads, "intra-op threads (0 = default)");
   app.add_option("--device", a->device, "cpu | cuda")->check(CLI::IsMember({"cpu", "cuda"}));

@@ -133,6 +133,51 @@ TEST(BspModel, TinyTrainingLowersTheLoss) {
   EXPECT_LT(last, 0.7 * first) << "first " << first << " last " << last;
 }
 
+// kl_warmup_epochs: the default anneals beta over the whole run, a warm-up of 2 reaches the
+// final weight after 2 epochs, 0 holds it from the first epoch. best_path keeps the weights of
+// the best logged validation IoU: reloaded, they give exactly that IoU.
+TEST(BspModel, KlWarmupAndKeepingTheBestValidationEpoch) {
+  const BspDataset data = TinyData();
+  BspTrainOptions opt = TinyTraining(0, 6);
+  opt.kl_weight = 0.02;
+  opt.checkpoint_every = 1;
+  {
+    BspModel model(TinyConfig(), 3);
+    const auto logs = model.Train(data, BspDataset(), opt);
+    ASSERT_EQ(logs.size(), 6u);
+    EXPECT_NEAR(logs[0].beta, 0.02 / 6, 1e-12);
+    EXPECT_NEAR(logs[5].beta, 0.02, 1e-12);
+  }
+  opt.kl_warmup_epochs = 2;
+  {
+    BspModel model(TinyConfig(), 3);
+    const auto logs = model.Train(data, BspDataset(), opt);
+    EXPECT_NEAR(logs[0].beta, 0.01, 1e-12);
+    EXPECT_NEAR(logs[1].beta, 0.02, 1e-12);
+    EXPECT_NEAR(logs[4].beta, 0.02, 1e-12);
+  }
+  opt.kl_warmup_epochs = 0;
+  const std::string dir = ::testing::TempDir() + "/bsp_best";
+  std::filesystem::create_directories(dir);
+  opt.best_path = dir + "/best.pt";
+  std::filesystem::remove(opt.best_path);
+  opt.learning_rate = 3e-2;  // large steps: validation IoU moves up and down between epochs
+  BspModel model(TinyConfig(), 3);
+  const auto logs = model.Train(data, data, opt);
+  double best = -1;
+  for (const auto& e : logs) {
+    EXPECT_NEAR(e.beta, 0.02, 1e-12);
+    ASSERT_GE(e.val_iou, 0.0) << "epoch " << e.epoch;
+    best = std::max(best, e.val_iou);
+  }
+  ASSERT_TRUE(std::filesystem::exists(opt.best_path));
+  const BspModel kept = BspModel::Load(opt.best_path);
+  EXPECT_NEAR(kept.EvaluateIoU(data, 0.0, 0.0), best, 1e-6);
+  if (logs.back().val_iou < best) {
+    EXPECT_GT(std::abs(model.EvaluateIoU(data, 0.0, 0.0) - best), 1e-9);
+  }
+}
+
 TEST(BspModel, SaveLoadRoundTripAndCorruptFiles) {
   const std::string dir = ::testing::TempDir() + "/bsp_io";
   std::filesystem::create_directories(dir);

@@ -46,6 +46,9 @@ struct BspTrainOptions {
   double learning_rate = 1e-4;
   int lr_step_epochs = 200;  // StepLR(step, 0.5) as the reference
   double kl_weight = 0.01;   // beta reached at the end of training (linear annealing)
+  // Epochs over which beta rises linearly to kl_weight: < 0 the whole run (the default), 0 a
+  // constant beta from the first epoch (fine-tuning a model trained with the same weight).
+  int kl_warmup_epochs = -1;
   std::uint64_t seed = 1;
   int threads = 0;              // 0 = library default
   std::string device = "cpu";   // "cpu" or "cuda"
@@ -78,6 +81,9 @@ struct BspTrainOptions {
   // shipped, e.g. the init model card's recommended_dilation); 0 = reference.
   double val_dilation = 0.0;
   double val_distance_dilation = 0.0;
+  // Model selection: whenever the logged validation IoU beats every earlier one of this run,
+  // the weights are saved here (fp32, loadable by Load). Empty = not kept.
+  std::string best_path;
 };
 
 struct BspEpochLog {
