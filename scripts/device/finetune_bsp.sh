@@ -11,7 +11,7 @@ source scripts/device/host_setup.sh
 BUDGET=${BUDGET:-540}
 JOBS=${JOBS:-$(nproc)}
 PER_CLASS=${PER_CLASS:-1250}
-VARIANTS=${VARIANTS:-"A:1e-4:0.01:20 B:3e-5:0.01:1000 C:1e-4:0.003:20"}   # name:lr:kl:lr-step
+VARIANTS=${VARIANTS:-"A:1e-4:0.005:20 B:3e-5:0.005:1000 C:1e-4:0.002:20"}   # name:lr:kl:lr-step
 mkdir -p /tmp/bsp "$OUT/bsp_ft"
 $B bsp prepare --per-class "$PER_CLASS" --seed 12 --jobs "$JOBS" --out /tmp/bsp/train.bin 2>/dev/null || exit 1
 $B bsp prepare --per-class 25 --seed 2 --jobs "$JOBS" --out /tmp/bsp/val.bin 2>/dev/null || exit 1
