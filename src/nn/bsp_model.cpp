@@ -563,6 +563,16 @@ double BspModel::EvaluateIoU(const BspDataset& data, double dilation,
   return sum / static_cast<double>(data.samples.size());
 }
 
+bool ReadKeptEpoch(const std::string& best_path, int* epoch, double* val_iou) {
+  std::ifstream in(best_path + ".txt");
+  int e = 0;
+  double iou = 0;
+  if (!(in >> e >> iou) || e < 1 || !std::filesystem::exists(best_path)) return false;
+  *epoch = e;
+  *val_iou = iou;
+  return true;
+}
+
 std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDataset& val,
                                          const BspTrainOptions& opt,
                                          const std::function<void(const BspEpochLog&)>& log) {
@@ -671,6 +681,14 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
   }
   std::vector<BspEpochLog> logs;
   double best_val_iou = 0.0;  // val_iou is -1 when not evaluated
+  if (!opt.best_path.empty()) {
+    int kept_epoch = 0;
+    if (resumed.empty() || !ReadKeptEpoch(opt.best_path, &kept_epoch, &best_val_iou)) {
+      best_val_iou = 0.0;
+      std::filesystem::remove(opt.best_path);  // a kept model of an earlier run is no candidate
+      std::filesystem::remove(opt.best_path + ".txt");
+    }
+  }
   const auto t_start = std::chrono::steady_clock::now();
   auto checkpoint = [&](int epoch_done) {
     if (opt.checkpoint_path.empty()) return;
@@ -802,6 +820,9 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     if (!opt.best_path.empty() && entry.val_iou > best_val_iou) {
       best_val_iou = entry.val_iou;
       Save(opt.best_path, /*half=*/false);
+      std::ofstream record(opt.best_path + ".txt");
+      record << entry.epoch << " " << entry.val_iou << "\n";
+      if (!record) throw Error(opt.best_path + ".txt: cannot write the kept-epoch record");
     }
     logs.push_back(entry);
     if (log) log(entry);

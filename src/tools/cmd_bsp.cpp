@@ -89,8 +89,8 @@ nn::BspConfig ConfigFromArg(const std::string& text) {
 
 void WriteModelCard(const std::string& dir, const nn::BspModel& model, const TrainArgs& a,
                     const std::string& command, const std::vector<nn::BspEpochLog>& logs,
-                    int best_epoch, double val_iou, double val_dilation, double val_distance_dilation,
-                    const std::string& weights) {
+                    int best_epoch, double val_iou, double val_dilation,
+                    double val_distance_dilation, const std::string& weights) {
   std::ofstream y(dir + "/model.yaml");
   y << "name: bsp_cvae\n";
   y << "description: BSP-CVAE shape autoencoder (class-conditioned), dimr-method.md sections 5-6\n";
@@ -170,7 +170,6 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   if (a.keep_best) {
     if (a.val.empty()) throw InvalidArgument("--keep-best needs --val (the selection data)");
     opt.best_path = a.out + "/best.pt";
-    std::filesystem::remove(opt.best_path);  // a kept model of an earlier run is not a candidate
   }
   const nn::BspDataset train = nn::BspDataset::Load(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
@@ -221,13 +220,10 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
     csv.flush();
   });
   int best_epoch = 0;
-  if (!opt.best_path.empty() && std::filesystem::exists(opt.best_path)) {
-    double best = -1.0;
-    for (const auto& e : logs) {
-      if (e.val_iou > best) best = e.val_iou, best_epoch = e.epoch;
-    }
+  double best = -1.0;
+  if (!opt.best_path.empty() && nn::ReadKeptEpoch(opt.best_path, &best_epoch, &best)) {
     model = nn::BspModel::Load(opt.best_path);
-    std::printf("kept epoch %d (best validation IoU %.4f of this run)\n", best_epoch, best);
+    std::printf("kept epoch %d (best validation IoU %.4f of the run)\n", best_epoch, best);
   }
   const double val_iou = val.samples.empty()
                              ? -1.0

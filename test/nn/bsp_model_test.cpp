@@ -176,6 +176,47 @@ TEST(BspModel, KlWarmupAndKeepingTheBestValidationEpoch) {
   if (logs.back().val_iou < best) {
     EXPECT_GT(std::abs(model.EvaluateIoU(data, 0.0, 0.0) - best), 1e-9);
   }
+  int kept_epoch = 0;
+  double kept_iou = 0;
+  ASSERT_TRUE(ReadKeptEpoch(opt.best_path, &kept_epoch, &kept_iou));
+  EXPECT_NEAR(kept_iou, best, 1e-6);
+  ASSERT_GE(kept_epoch, 1);
+  EXPECT_NEAR(logs[kept_epoch - 1].val_iou, best, 1e-6);
+
+  // Interrupted after 3 epochs and resumed to 6 from the checkpoint: the resumed run competes
+  // with the kept epoch. The record is raised to an IoU the tiny model cannot reach, so a resume
+  // that forgot it (and kept a later epoch) shows.
+  opt.checkpoint_path = dir + "/ck.pt";
+  for (const char* ext : {"", ".optim", ".state"})
+    std::filesystem::remove(opt.checkpoint_path + ext);
+  opt.epochs_phase1 = 3;
+  BspModel first(TinyConfig(), 3);
+  first.Train(data, data, opt);
+  ASSERT_TRUE(ReadKeptEpoch(opt.best_path, &kept_epoch, &kept_iou));
+  EXPECT_LE(kept_epoch, 3);
+  std::ofstream(opt.best_path + ".txt") << "2 0.99\n";
+  opt.epochs_phase1 = 6;
+  const auto tail = first.Train(data, data, opt);
+  ASSERT_EQ(tail.size(), 3u);
+  ASSERT_EQ(tail.front().epoch, 4);
+  for (const auto& e : tail) ASSERT_LT(e.val_iou, 0.99);
+  ASSERT_TRUE(ReadKeptEpoch(opt.best_path, &kept_epoch, &kept_iou));
+  EXPECT_EQ(kept_epoch, 2);
+  EXPECT_NEAR(kept_iou, 0.99, 1e-12);
+  // A fresh run (no checkpoint) starts its own competition.
+  std::filesystem::remove(opt.checkpoint_path);
+  opt.epochs_phase1 = 1;
+  opt.learning_rate = 0.0;  // the untrained model's IoU, lower than any trained epoch's
+  BspModel fresh(TinyConfig(), 3);
+  const auto one = fresh.Train(data, data, opt);
+  if (one[0].val_iou > 0) {
+    ASSERT_TRUE(ReadKeptEpoch(opt.best_path, &kept_epoch, &kept_iou));
+    EXPECT_EQ(kept_epoch, 1);
+    EXPECT_NEAR(kept_iou, one[0].val_iou, 1e-6);
+  } else {
+    EXPECT_FALSE(ReadKeptEpoch(opt.best_path, &kept_epoch, &kept_iou)) << "stale kept epoch";
+  }
+  EXPECT_FALSE(ReadKeptEpoch(dir + "/missing.pt", &kept_epoch, &kept_iou));
 }
 
 TEST(BspModel, SaveLoadRoundTripAndCorruptFiles) {

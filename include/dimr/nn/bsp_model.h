@@ -81,10 +81,16 @@ struct BspTrainOptions {
   // shipped, e.g. the init model card's recommended_dilation); 0 = reference.
   double val_dilation = 0.0;
   double val_distance_dilation = 0.0;
-  // Model selection: whenever the logged validation IoU beats every earlier one of this run,
-  // the weights are saved here (fp32, loadable by Load). Empty = not kept.
+  // Model selection: whenever the logged validation IoU beats every earlier one of the run,
+  // the weights are saved here (fp32, loadable by Load) and "<epoch> <iou>" to
+  // `best_path + ".txt"` (ReadKeptEpoch). A run resumed from its checkpoint keeps competing
+  // with the kept epoch; a fresh run discards both files first. Empty = not kept.
   std::string best_path;
 };
+
+// The epoch kept under `best_path` by BspTrainOptions::best_path and its validation IoU;
+// false when nothing was kept (or the record is unreadable).
+bool ReadKeptEpoch(const std::string& best_path, int* epoch, double* val_iou);
 
 struct BspEpochLog {
   int epoch = 0;  // 1-based over all phases
