@@ -298,13 +298,27 @@ void RunEval(const EvalArgs& a) {
 // ---------------------------------------------------------------- encode-pool
 struct PoolArgs {
   std::string model, data, out;
+  std::string shapenet, split = "all";  // a ShapeNet-format tree instead of --data
   int refine_steps = 0;  // latent refinement of each mu on the model's own occupancy samples
   double refine_lr = 0.01;
 };
 
 void RunEncodePool(const PoolArgs& a) {
+  if (a.data.empty() == a.shapenet.empty()) {
+    throw InvalidArgument(
+        "encode-pool: give either --data (dimr bsp prepare) or --shapenet (a tree)");
+  }
   const nn::BspModel model = nn::BspModel::Load(a.model);
-  const nn::BspDataset data = nn::BspDataset::Load(a.data);
+  nn::BspDataset data;
+  if (!a.data.empty()) {
+    data = nn::BspDataset::Load(a.data);
+  } else {
+    ShapeNetSelection sel;
+    sel.split = a.split;
+    sel.resolution = model.config().resolution;
+    sel.jobs = 0;
+    data = ShapeNetBspDataset(a.shapenet, sel);
+  }
   const Eigen::MatrixXf codes = model.EncodeAll(data);
   pipeline::ShapePool pool(model.config().latent_dim);
   const int L = model.config().latent_dim;
@@ -497,7 +511,12 @@ void SetupEval(CLI::App& app) {
 void SetupPool(CLI::App& app) {
   auto a = std::make_shared<PoolArgs>();
   app.add_option("--model", a->model)->required();
-  app.add_option("--data", a->data, "dataset of the CAD models to encode")->required();
+  app.add_option("--data", a->data, "dataset of the CAD models to encode (dimr bsp prepare)");
+  app.add_option("--shapenet", a->shapenet,
+                 "encode every CAD model of this ShapeNet-format tree instead (dimr cad generate "
+                 "or ShapeNetCore v2)");
+  app.add_option("--split", a->split, "with --shapenet: all | train | val | test (as bsp prepare)")
+      ->check(CLI::IsMember({"all", "train", "val", "test"}));
   app.add_option("--out", a->out)->required();
   app.add_option("--refine-steps", a->refine_steps,
                  "refine each mu by this many Adam steps on the model's own inside/outside "

@@ -1,9 +1,11 @@
-// `dimr bsp prepare`: BSP-CVAE training sets from the procedural CAD library.
+// `dimr bsp prepare`: BSP-CVAE training sets from the procedural CAD library or a
+// ShapeNet-format tree; `dimr bsp render|eval-cad` on procedural models.
 #include <Eigen/Core>
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -11,6 +13,7 @@
 
 #include "dimr/data/cad_library.h"
 #include "dimr/data/labels.h"
+#include "dimr/data/shapenet_io.h"
 #include "dimr/eval/mesh_metrics.h"
 #include "dimr/eval/parallel.h"
 #include "dimr/geometry/error.h"
@@ -24,6 +27,83 @@
 #include "tools/render.h"
 
 namespace dimr::tools {
+
+namespace {
+
+std::uint64_t Fnv1a(const std::string& text) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (unsigned char ch : text) {
+    h ^= ch;
+    h *= 1099511628211ull;
+  }
+  return h;
+}
+
+}  // namespace
+
+std::string ShapeNetSplitOf(const std::string& model_id) {
+  const std::uint64_t bucket = Fnv1a(model_id) % 100;
+  return bucket < 80 ? "train" : (bucket < 90 ? "val" : "test");
+}
+
+nn::BspDataset ShapeNetBspDataset(const std::string& dir, const ShapeNetSelection& sel) {
+  namespace fs = std::filesystem;
+  if (sel.split != "all" && sel.split != "train" && sel.split != "val" && sel.split != "test") {
+    throw InvalidArgument("ShapeNet split '" + sel.split + "': use all, train, val or test");
+  }
+  std::error_code ec;
+  if (!fs::is_directory(dir, ec)) throw ParseError(dir, "no such ShapeNet tree (directory)");
+  struct Item {
+    std::string path, synset, model_id;
+    int cad_class;
+  };
+  std::vector<Item> items;
+  std::vector<int> taken(data::kNumCadClasses, 0);
+  for (int c : sel.classes) {
+    const std::string synset = data::CadSynsets()[c];
+    const fs::path synset_dir = fs::path(dir) / synset;
+    if (!fs::is_directory(synset_dir, ec)) continue;
+    std::vector<std::string> ids;
+    for (const auto& entry : fs::directory_iterator(synset_dir)) {
+      if (entry.is_directory()) ids.push_back(entry.path().filename().string());
+    }
+    std::sort(ids.begin(), ids.end());
+    for (const std::string& id : ids) {
+      const fs::path obj = fs::path(dir) / data::ShapeNetRelativePath(synset, id);
+      if (!fs::is_regular_file(obj, ec)) continue;  // e.g. a model without model_normalized.obj
+      if (sel.split != "all" && ShapeNetSplitOf(id) != sel.split) continue;
+      if (sel.per_class > 0 && taken[c] >= sel.per_class) break;
+      ++taken[c];
+      items.push_back({obj.string(), synset, id, c});
+    }
+  }
+  if (items.empty()) {
+    throw InvalidArgument("ShapeNet tree '" + dir + "': no model_normalized.obj of the selected " +
+                          "classes in split '" + sel.split + "'");
+  }
+  nn::BspDataset data;
+  data.resolution = sel.resolution;
+  data.samples.resize(items.size());
+  pipeline::BspSampleOptions opt;
+  opt.resolution = sel.resolution;
+  eval::Progress progress("bsp prepare (shapenet)", items.size(), true);
+  eval::ParallelFor(
+      items.size(), sel.jobs,
+      [&](std::size_t k) {
+        const Item& it = items[k];
+        const data::CadModel m = data::ReadShapeNetModel(it.path, it.synset);
+        try {
+          data.samples[k] = pipeline::MakeBspSample(m.mesh, it.cad_class, it.model_id, opt,
+                                                    Fnv1a(it.model_id) ^ 0x9e3779b97f4a7c15ull);
+        } catch (const std::exception& e) {
+          throw ParseError(it.path, e.what());
+        }
+      },
+      &progress);
+  progress.Finish();
+  return data;
+}
+
 namespace {
 
 std::vector<int> ParseClasses(const std::string& text) {
@@ -48,7 +128,9 @@ std::vector<int> ParseClasses(const std::string& text) {
 // ---------------------------------------------------------------- prepare
 struct PrepareArgs {
   std::string out;
-  int per_class = 100;
+  std::string shapenet;  // a ShapeNet-format tree instead of the procedural library
+  std::string split = "all";
+  int per_class = 0;  // 0: 100 procedural models per class, every model of a tree
   std::uint64_t seed = 1;
   std::string classes = "all";
   int resolution = 32;
@@ -61,14 +143,41 @@ std::uint64_t ModelSeed(std::uint64_t seed, int cad_class, int i) {
          static_cast<std::uint64_t>(i);
 }
 
+void RunPrepareShapeNet(const PrepareArgs& a) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ShapeNetSelection sel;
+  sel.split = a.split;
+  sel.classes = ParseClasses(a.classes);
+  sel.per_class = a.per_class;
+  sel.resolution = a.resolution;
+  sel.jobs = a.jobs;
+  const nn::BspDataset data = ShapeNetBspDataset(a.shapenet, sel);
+  data.Save(a.out);
+  std::vector<int> count(data::kNumCadClasses, 0);
+  for (const auto& s : data.samples) ++count[s.cad_class];
+  std::string counts;
+  for (int c = 0; c < data::kNumCadClasses; ++c) {
+    if (count[c] == 0) continue;
+    counts += (counts.empty() ? "" : ", ") + std::string(data::CadClassNames()[c]) + " " +
+              std::to_string(count[c]);
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("wrote %zu samples (R=%d, split %s: %s) from %s to %s in %.1f s\n",
+              data.samples.size(), a.resolution, a.split.c_str(), counts.c_str(),
+              a.shapenet.c_str(), a.out.c_str(), secs);
+}
+
 void RunPrepare(const PrepareArgs& a) {
+  if (!a.shapenet.empty()) return RunPrepareShapeNet(a);
+  if (a.split != "all") throw InvalidArgument("--split applies to --shapenet trees only");
+  const int per_class = a.per_class > 0 ? a.per_class : 100;
   nn::BspDataset data;
   data.resolution = a.resolution;
   pipeline::BspSampleOptions opt;
   opt.resolution = a.resolution;
   const auto classes = ParseClasses(a.classes);
   const auto t0 = std::chrono::steady_clock::now();
-  const std::size_t total = classes.size() * static_cast<std::size_t>(a.per_class);
+  const std::size_t total = classes.size() * static_cast<std::size_t>(per_class);
   // Each shape depends only on its (seed, class, index), so the output is the same for any
   // number of jobs: every item writes its own slot.
   data.samples.resize(total);
@@ -76,8 +185,8 @@ void RunPrepare(const PrepareArgs& a) {
   eval::ParallelFor(
       total, a.jobs,
       [&](std::size_t k) {
-        const int c = classes[k / static_cast<std::size_t>(a.per_class)];
-        const int i = static_cast<int>(k % static_cast<std::size_t>(a.per_class));
+        const int c = classes[k / static_cast<std::size_t>(per_class)];
+        const int i = static_cast<int>(k % static_cast<std::size_t>(per_class));
         try {
           const std::uint64_t model_seed = ModelSeed(a.seed, c, i);
           const data::CadModel m = data::GenerateCadModel(c, model_seed);
@@ -99,8 +208,17 @@ void RunPrepare(const PrepareArgs& a) {
 void SetupPrepare(CLI::App& app) {
   auto a = std::make_shared<PrepareArgs>();
   app.add_option("--out", a->out, "output dataset file")->required();
-  app.add_option("--per-class", a->per_class, "procedural CAD models per class")
-      ->check(CLI::Range(1, 100000));
+  app.add_option("--shapenet", a->shapenet,
+                 "read the CAD models from this ShapeNet-format tree (<synset>/<id>/models/"
+                 "model_normalized.obj: `dimr cad generate` or ShapeNetCore v2) instead of "
+                 "generating them");
+  app.add_option("--split", a->split,
+                 "with --shapenet: all | train | val | test (80/10/10 by a hash of the model id)")
+      ->check(CLI::IsMember({"all", "train", "val", "test"}));
+  app.add_option("--per-class", a->per_class,
+                 "procedural CAD models per class (default 100); with --shapenet the most per "
+                 "class (balancing; default all)")
+      ->check(CLI::Range(0, 100000));
   app.add_option("--seed", a->seed,
                  "seed of the model stream (use different seeds for train/val/test)");
   app.add_option("--classes", a->classes, "'all' or a comma list of class names");
