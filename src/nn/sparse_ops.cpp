@@ -3,6 +3,7 @@
 #include "dimr/nn/sparse_ops.h"
 
 #include <ATen/Parallel.h>
+#include <immintrin.h>
 #include <torch/csrc/autograd/custom_function.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include <limits>
 #include <sstream>
 #include <string>
+#include <type_traits>
 
 #include "dimr/geometry/error.h"
 
@@ -113,6 +115,163 @@ inline void ScatterAddRows(double* dst, const double* src, const int64_t* idx, i
 }
 
 // ---------------------------------------------------------------------------------------
+// Direct kernel (float, AVX-512): out[dst[r]] += x[src[r]] * W for the pairs of one kernel
+// offset, W row-major [cin, cout] with cout = 16 V. A block of R pairs keeps its R x V output
+// vectors in registers while the cin loop broadcasts one input value per pair against the V
+// vectors of a weight row, so rows are read from x and added to out once, without the gather /
+// product buffers of the GEMM path (whose small-N GEMMs run well below peak). R V + V <= 30
+// zmm registers. Within one offset every dst row occurs once, so chunks of pairs run in
+// parallel without races (as in the GEMM path).
+// ---------------------------------------------------------------------------------------
+template <int V, int R>
+__attribute__((target("avx512f"))) void DirectRows(const float* __restrict x, int64_t cin,
+                                                   const float* __restrict w, const int64_t* src,
+                                                   const int64_t* dst, int64_t rows,
+                                                   float* __restrict out) {
+  constexpr int64_t cout = 16 * V;
+  int64_t b = 0;
+  for (; b + R <= rows; b += R) {
+    const float* xr[R];
+    for (int r = 0; r < R; ++r) xr[r] = x + src[b + r] * cin;
+    if (b + 2 * R <= rows) {
+      for (int r = 0; r < R; ++r) PrefetchRow(x + src[b + R + r] * cin, cin);
+    }
+    __m512 acc[R][V];
+    for (int r = 0; r < R; ++r) {
+      for (int v = 0; v < V; ++v) acc[r][v] = _mm512_setzero_ps();
+    }
+    for (int64_t c = 0; c < cin; ++c) {
+      __m512 wv[V];
+      for (int v = 0; v < V; ++v) wv[v] = _mm512_loadu_ps(w + c * cout + 16 * v);
+      for (int r = 0; r < R; ++r) {
+        const __m512 xb = _mm512_set1_ps(xr[r][c]);
+        for (int v = 0; v < V; ++v) acc[r][v] = _mm512_fmadd_ps(xb, wv[v], acc[r][v]);
+      }
+    }
+    for (int r = 0; r < R; ++r) {
+      float* o = out + dst[b + r] * cout;
+      for (int v = 0; v < V; ++v) {
+        _mm512_storeu_ps(o + 16 * v, _mm512_add_ps(_mm512_loadu_ps(o + 16 * v), acc[r][v]));
+      }
+    }
+  }
+  if (b < rows) DirectRows<V, 1>(x, cin, w, src + b, dst + b, rows - b, out);
+}
+
+using DirectRowsFn = void (*)(const float*, int64_t, const float*, const int64_t*, const int64_t*,
+                              int64_t, float*);
+
+// The direct kernel for this output width, or nullptr (no AVX-512, or cout not 16..128 in
+// steps of 16): the GEMM path then runs.
+DirectRowsFn DirectKernelFor(int64_t cout) {
+  static const bool avx512 = __builtin_cpu_supports("avx512f");
+  if (!avx512 || cout % 16 != 0) return nullptr;
+  switch (cout / 16) {
+    case 1:
+      return &DirectRows<1, 24>;
+    case 2:
+      return &DirectRows<2, 12>;
+    case 3:
+      return &DirectRows<3, 8>;
+    case 4:
+      return &DirectRows<4, 6>;
+    case 5:
+      return &DirectRows<5, 5>;
+    case 6:
+      return &DirectRows<6, 4>;
+    case 7:
+      return &DirectRows<7, 3>;
+    case 8:
+      return &DirectRows<8, 3>;
+    default:
+      return nullptr;
+  }
+}
+
+// Weight gradient of one offset, gw[cin, cout] += sum over pairs of x[src[r]]^T g[dst[r]], with
+// cout = 16 V: a tile of T input channels x V vectors stays in registers over all pairs of the
+// call (<= 1024, so float sums stay short), one pass over the pairs per tile.
+template <int V, int T>
+__attribute__((target("avx512f"))) void DirectGradW(const float* __restrict x, int64_t cin,
+                                                    const float* __restrict g, const int64_t* src,
+                                                    const int64_t* dst, int64_t rows,
+                                                    float* __restrict gw) {
+  constexpr int64_t cout = 16 * V;
+  for (int64_t c0 = 0; c0 < cin; c0 += T) {
+    __m512 acc[T][V];
+    for (int t = 0; t < T; ++t) {
+      for (int v = 0; v < V; ++v) acc[t][v] = _mm512_setzero_ps();
+    }
+    for (int64_t r = 0; r < rows; ++r) {
+      if (r + kPrefetchAhead < rows) {
+        PrefetchRow(g + dst[r + kPrefetchAhead] * cout, cout);
+        __builtin_prefetch(x + src[r + kPrefetchAhead] * cin + c0);
+      }
+      const float* gr = g + dst[r] * cout;
+      const float* xr = x + src[r] * cin + c0;
+      __m512 gv[V];
+      for (int v = 0; v < V; ++v) gv[v] = _mm512_loadu_ps(gr + 16 * v);
+      for (int t = 0; t < T; ++t) {
+        const __m512 xb = _mm512_set1_ps(xr[t]);
+        for (int v = 0; v < V; ++v) acc[t][v] = _mm512_fmadd_ps(xb, gv[v], acc[t][v]);
+      }
+    }
+    for (int t = 0; t < T; ++t) {
+      float* o = gw + (c0 + t) * cout;
+      for (int v = 0; v < V; ++v) {
+        _mm512_storeu_ps(o + 16 * v, _mm512_add_ps(_mm512_loadu_ps(o + 16 * v), acc[t][v]));
+      }
+    }
+  }
+}
+
+// The weight-gradient kernel for these widths, or nullptr (the GEMM path then runs): cout 16..128
+// in steps of 16 and cin a multiple of the channel tile (16 for cout 16, 8 up to 48, 4 up to 96,
+// else 2).
+DirectRowsFn DirectGradWKernelFor(int64_t cin, int64_t cout) {
+  static const bool avx512 = __builtin_cpu_supports("avx512f");
+  if (!avx512 || cout % 16 != 0 || cout < 16 || cout > 128) return nullptr;
+  const int64_t v = cout / 16;
+  const int64_t tile = v == 1 ? 16 : (v <= 3 ? 8 : (v <= 6 ? 4 : 2));
+  if (cin % tile != 0) return nullptr;
+  switch (v) {
+    case 1:
+      return &DirectGradW<1, 16>;
+    case 2:
+      return &DirectGradW<2, 8>;
+    case 3:
+      return &DirectGradW<3, 8>;
+    case 4:
+      return &DirectGradW<4, 4>;
+    case 5:
+      return &DirectGradW<5, 4>;
+    case 6:
+      return &DirectGradW<6, 4>;
+    case 7:
+      return &DirectGradW<7, 2>;
+    default:
+      return &DirectGradW<8, 2>;
+  }
+}
+
+// out[dst] += x[src] * W over the pairs [b0, b0 + n) of one offset with a direct kernel,
+// in parallel chunks.
+// `out_stride` > 0: each thread writes to out + thread * out_stride (per-thread accumulators
+// of the weight gradient); 0: all write to out (rows of out are distinct within an offset).
+void DirectOffset(DirectRowsFn kernel, const float* x, int64_t cin, const float* w,
+                  const int64_t* src, const int64_t* dst, int64_t b0, int64_t n, float* out,
+                  int64_t out_stride = 0) {
+  constexpr int64_t kChunk = 1024;
+  at::parallel_for(0, (n + kChunk - 1) / kChunk, 1, [&](int64_t cb, int64_t ce) {
+    float* o = out + at::get_thread_num() * out_stride;
+    for (int64_t ch = cb; ch < ce; ++ch) {
+      const int64_t r0 = b0 + ch * kChunk, r1 = std::min(b0 + n, r0 + kChunk);
+      kernel(x, cin, w, src + r0, dst + r0, r1 - r0, o);
+    }
+  });
+}
+
+// ---------------------------------------------------------------------------------------
 // Fused CPU kernels.
 // ---------------------------------------------------------------------------------------
 template <typename T>
@@ -127,6 +286,7 @@ void FusedForwardImpl(const at::Tensor& x, const at::Tensor& w, const ConvPlan& 
   const int64_t* si = p.src_idx.data_ptr<int64_t>();
   const int64_t* di = p.dst_idx.data_ptr<int64_t>();
   const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  const DirectRowsFn direct = std::is_same_v<T, float> ? DirectKernelFor(cout) : nullptr;
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -134,6 +294,12 @@ void FusedForwardImpl(const at::Tensor& x, const at::Tensor& w, const ConvPlan& 
     if (k == p.identity && n == p.n_src && n == p.n_dst) {
       out.addmm_(x, wk);
       continue;
+    }
+    if constexpr (std::is_same_v<T, float>) {
+      if (direct) {
+        DirectOffset(direct, xp, cin, wk.data_ptr<float>(), si, di, b0, n, op);
+        continue;
+      }
     }
     const int64_t nchunks = (n + rows - 1) / rows;
     at::parallel_for(0, nchunks, 1, [&](int64_t cb, int64_t ce) {
@@ -170,6 +336,13 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
   T* gxp = gx ? gx->data_ptr<T>() : nullptr;
   const int64_t* si = p.src_idx.data_ptr<int64_t>();
   const int64_t* di = p.dst_idx.data_ptr<int64_t>();
+  // Input gradient gx[src] += g[dst] * W_k^T: the direct kernel of width cin on the transposed
+  // weights where it applies, else a GEMM per chunk below.
+  const DirectRowsFn direct = gx && std::is_same_v<T, float> ? DirectKernelFor(cin) : nullptr;
+  const at::Tensor wt = direct ? w.transpose(1, 2).contiguous() : at::Tensor();
+  // Weight gradient: the direct kernel into the per-thread accumulators, else a GEMM per chunk.
+  const DirectRowsFn direct_w =
+      gw && std::is_same_v<T, float> ? DirectGradWKernelFor(cin, cout) : nullptr;
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -179,6 +352,16 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
       if (gx) gx->addmm_(gout, wkt);
       if (gw) gw->select(0, k).addmm_(x.t(), gout);
       continue;
+    }
+    if constexpr (std::is_same_v<T, float>) {
+      if (direct) {
+        DirectOffset(direct, gp, cout, wt.select(0, k).data_ptr<float>(), di, si, b0, n, gxp);
+      }
+      if (direct_w) {
+        DirectOffset(direct_w, xp, cin, gp, si, di, b0, n, acc.data_ptr<float>() + k * cin * cout,
+                     kv * cin * cout);
+      }
+      if ((direct || !gx) && (direct_w || !gw)) continue;
     }
     const int64_t nchunks = (n + rows - 1) / rows;
     at::parallel_for(0, nchunks, 1, [&](int64_t cb, int64_t ce) {
@@ -194,12 +377,12 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
         const int64_t m = std::min(rows, b0 + n - r0);
         GatherRows(gbuf, gp, di + r0, m, cout);
         at::Tensor g = at::from_blob(gbuf, {m, cout}, x.options());
-        if (gx) {
+        if (gx && !direct) {
           at::Tensor d = at::from_blob(dbuf, {m, cin}, x.options());
           at::mm_out(d, g, wkt);
           ScatterAddRows(gxp, dbuf, si + r0, m, cin);
         }
-        if (gw) {
+        if (gw && !direct_w) {
           GatherRows(xbuf, xp, si + r0, m, cin);
           at::Tensor a = at::from_blob(xbuf, {m, cin}, x.options());
           acck.addmm_(a.t(), g);
