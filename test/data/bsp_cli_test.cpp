@@ -20,6 +20,13 @@ using dimr::testing::FreshTempDir;
 using dimr::testing::ReadFileText;
 using dimr::testing::RunCli;
 
+// The content hash `encode-pool` reports, "" if none.
+std::string PoolHash(const std::string& out) {
+  std::smatch m;
+  return std::regex_search(out, m, std::regex("content hash ([0-9a-f]+)")) ? m[1].str()
+                                                                           : std::string();
+}
+
 double AllIoU(const std::string& out) {
   std::smatch m;
   if (!std::regex_search(out, m, std::regex(R"(\| \*\*all\*\* \| 8 \| \*\*([0-9.]+)\*\*)"))) {
@@ -90,22 +97,17 @@ TEST(BspCli, DilationFromOptionOrModelCard) {
   EXPECT_NE(out.find("lr"), std::string::npos) << out;
 
   // The pool: one entry per model; refined codes give another pool (another content hash).
-  auto pool_hash = [](const std::string& text) {
-    std::smatch m;
-    return std::regex_search(text, m, std::regex("content hash ([0-9a-f]+)")) ? m[1].str()
-                                                                              : std::string();
-  };
   std::tie(rc, out) = RunCli("encode-pool --model " + d + "/bsp.pt --data " + d +
                              "/data.bin --out " + d + "/pool.bin");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("encoded 8 CAD models"), std::string::npos) << out;
-  const std::string plain_hash = pool_hash(out);
+  const std::string plain_hash = PoolHash(out);
   ASSERT_FALSE(plain_hash.empty()) << out;
   std::tie(rc, out) = RunCli("encode-pool --model " + d + "/bsp.pt --data " + d +
                              "/data.bin --out " + d + "/pool_refined.bin --refine-steps 5");
   ASSERT_EQ(rc, 0) << out;
-  EXPECT_NE(pool_hash(out), plain_hash) << out;
-  EXPECT_NE(pool_hash(out), "") << out;
+  EXPECT_NE(PoolHash(out), plain_hash) << out;
+  EXPECT_NE(PoolHash(out), "") << out;
 
   // A malformed card: non-zero exit naming the card.
   std::ofstream(d + "/model.yaml") << "recommended_dilation: wide\n";
@@ -162,21 +164,16 @@ TEST(BspCli, PrepareAndPoolFromAShapeNetTree) {
   EXPECT_GT(std::stod(m[1]), 0.65) << out;
 
   // The pool from the tree equals the pool from the prepared file (same codes, same order).
-  auto pool_hash = [](const std::string& text) {
-    std::smatch h;
-    return std::regex_search(text, h, std::regex("content hash ([0-9a-f]+)")) ? h[1].str()
-                                                                              : std::string();
-  };
   std::tie(rc, out) = RunCli("encode-pool --model " + model + " --shapenet " + d + "/tree --out " +
                              d + "/pool_tree.bin");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("encoded 24 CAD models"), std::string::npos) << out;
-  const std::string tree_hash = pool_hash(out);
+  const std::string tree_hash = PoolHash(out);
   std::tie(rc, out) = RunCli("encode-pool --model " + model + " --data " + d + "/all.bin --out " +
                              d + "/pool_data.bin");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_FALSE(tree_hash.empty());
-  EXPECT_EQ(pool_hash(out), tree_hash) << out;
+  EXPECT_EQ(PoolHash(out), tree_hash) << out;
 
   // Errors: no tree, both sources, a split without a tree, a corrupt model (named).
   std::tie(rc, out) = RunCli("bsp prepare --shapenet " + d + "/none --out " + d + "/x.bin");

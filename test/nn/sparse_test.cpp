@@ -86,6 +86,29 @@ void ExpectClose(const Grads& a, const Grads& b, double tol, const std::string& 
   EXPECT_LT(RelErr(a.gw, b.gw), tol) << what << " grad weight";
 }
 
+// 3x3x3 submanifold conv of (coords, x) with weights w [3, 3, 3, cin, cout] (batch 2), and the
+// gradients of sum(out * r): through a dense conv3d (the reference) and through SubMConv3d
+// (the backend in force).
+Grads DenseSubM3(const at::Tensor& coords, const Shape3& shape, const at::Tensor& x,
+                 const at::Tensor& w, const at::Tensor& r) {
+  return RunWithGrad(
+      [&](const at::Tensor& xf, const at::Tensor& wf) {
+        at::Tensor d = ToDense(coords, xf, 2, shape);
+        return FromDense(at::conv3d(d, wf.permute({4, 3, 0, 1, 2}), {}, at::IntArrayRef({1, 1, 1}),
+                                    at::IntArrayRef({1, 1, 1})),
+                         coords);
+      },
+      x, w, r);
+}
+Grads SparseSubM3(const at::Tensor& coords, const Shape3& shape, const at::Tensor& x,
+                  const at::Tensor& w, const at::Tensor& r) {
+  return RunWithGrad(
+      [&](const at::Tensor& xf, const at::Tensor& wf) {
+        return SubMConv3d(SparseTensor(coords, xf, shape, 2), wf).features();
+      },
+      x, w, r);
+}
+
 class BackendGuard {
  public:
   explicit BackendGuard(SparseBackend b) : old_(GetSparseBackend()) { SetSparseBackend(b); }
@@ -109,22 +132,10 @@ TEST(SparseConv, SubmanifoldMatchesDenseConv3d) {
       at::Tensor x = at::randn({coords.size(0), cin}, at::dtype(dtype));
       at::Tensor w = at::randn({3, 3, 3, cin, cout}, at::dtype(dtype));
       at::Tensor r = at::randn({coords.size(0), cout}, at::dtype(dtype));
-      Grads ref = RunWithGrad(
-          [&](const at::Tensor& xf, const at::Tensor& wf) {
-            at::Tensor d = ToDense(coords, xf, 2, shape);
-            return FromDense(at::conv3d(d, wf.permute({4, 3, 0, 1, 2}), {},
-                                        at::IntArrayRef({1, 1, 1}), at::IntArrayRef({1, 1, 1})),
-                             coords);
-          },
-          x, w, r);
+      const Grads ref = DenseSubM3(coords, shape, x, w, r);
       for (auto be : kBackends) {
         BackendGuard g(be);
-        Grads got = RunWithGrad(
-            [&](const at::Tensor& xf, const at::Tensor& wf) {
-              return SubMConv3d(SparseTensor(coords, xf, shape, 2), wf).features();
-            },
-            x, w, r);
-        ExpectClose(got, ref, Tol(dtype),
+        ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, Tol(dtype),
                     std::string("subm3 ") + Name(be) + " n=" + std::to_string(n));
       }
     }
@@ -144,21 +155,10 @@ TEST(SparseConv, SubmanifoldAllKernelWidthsMatchDenseConv3d) {
     at::Tensor x = at::randn({coords.size(0), cin});
     at::Tensor w = at::randn({3, 3, 3, cin, cout}) * 0.2;
     at::Tensor r = at::randn({coords.size(0), cout});
-    Grads ref = RunWithGrad(
-        [&](const at::Tensor& xf, const at::Tensor& wf) {
-          at::Tensor d = ToDense(coords, xf, 2, shape);
-          return FromDense(at::conv3d(d, wf.permute({4, 3, 0, 1, 2}), {},
-                                      at::IntArrayRef({1, 1, 1}), at::IntArrayRef({1, 1, 1})),
-                           coords);
-        },
-        x, w, r);
+    const Grads ref = DenseSubM3(coords, shape, x, w, r);
     BackendGuard g(SparseBackend::kFused);
-    Grads got = RunWithGrad(
-        [&](const at::Tensor& xf, const at::Tensor& wf) {
-          return SubMConv3d(SparseTensor(coords, xf, shape, 2), wf).features();
-        },
-        x, w, r);
-    ExpectClose(got, ref, 1e-4, "subm3 fused " + std::to_string(cin) + "->" + std::to_string(cout));
+    ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4,
+                "subm3 fused " + std::to_string(cin) + "->" + std::to_string(cout));
   }
 }
 
