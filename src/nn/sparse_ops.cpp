@@ -121,7 +121,9 @@ inline void ScatterAddRows(double* dst, const double* src, const int64_t* idx, i
 // vectors of a weight row, so rows are read from x and added to out once, without the gather /
 // product buffers of the GEMM path (whose small-N GEMMs run well below peak). R V + V <= 30
 // zmm registers. Within one offset every dst row occurs once, so chunks of pairs run in
-// parallel without races (as in the GEMM path).
+// parallel without races (as in the GEMM path). Keep the accumulator loops written out in each
+// kernel: zeroing them with std::fill and adding them through a shared helper taking acc[r]
+// made the stage-1 U-Net forward ~10 % slower (measured 2026-11-27, 361 -> 410 ms).
 // ---------------------------------------------------------------------------------------
 template <int V, int R>
 __attribute__((target("avx512f"))) void DirectRows(const float* __restrict x, int64_t cin,
