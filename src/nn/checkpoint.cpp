@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/hash.h"
 
 namespace dimr::nn {
 namespace {
@@ -23,15 +24,6 @@ constexpr uint32_t kMaxNameLen = 4096;
 constexpr uint32_t kMaxDims = 16;
 
 enum DType : uint8_t { kF32 = 0, kF64 = 1, kF16 = 2, kI64 = 3 };
-
-uint64_t Fnv1a(const char* data, size_t n) {
-  uint64_t h = 1469598103934665603ULL;
-  for (size_t i = 0; i < n; ++i) {
-    h ^= static_cast<unsigned char>(data[i]);
-    h *= 1099511628211ULL;
-  }
-  return h;
-}
 
 std::string ShapeStr(at::IntArrayRef s) {
   std::ostringstream os;
@@ -121,7 +113,7 @@ void WriteCheckpoint(const NamedTensors& tensors, const std::string& path, bool 
     Put<uint64_t>(buf, nbytes);
     buf.append(static_cast<const char*>(t.data_ptr()), nbytes);
   }
-  Put<uint64_t>(buf, Fnv1a(buf.data(), buf.size()));
+  Put<uint64_t>(buf, geometry::Fnv1a(buf.data(), buf.size()));
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
   if (!f) throw ParseError(path, "cannot open for writing");
   f.write(buf.data(), static_cast<std::streamsize>(buf.size()));
@@ -207,7 +199,7 @@ NamedTensors ReadCheckpoint(const std::string& path) {
   }
   uint64_t stored;
   std::memcpy(&stored, data.data() + body, 8);
-  if (stored != Fnv1a(data.data(), body)) {
+  if (stored != geometry::Fnv1a(data.data(), body)) {
     throw ParseError(path, "checksum mismatch (file corrupt)");
   }
   return out;

@@ -11,21 +11,13 @@
 #include <string>
 
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/hash.h"
 
 namespace dimr::pipeline {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'P', 'O', 'O', 'L'};
 constexpr std::uint32_t kVersion = 1;
-
-std::uint64_t Fnv1a(std::uint64_t h, const void* data, std::size_t n) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < n; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ull;
-  }
-  return h;
-}
 
 template <typename T>
 void Put(std::string* out, const T& v) {
@@ -53,12 +45,11 @@ void ShapePool::Add(PoolEntry entry) {
 }
 
 std::string ShapePool::ContentHash() const {
-  std::uint64_t h = 1469598103934665603ull;
-  h = Fnv1a(h, &latent_dim_, sizeof(latent_dim_));
+  std::uint64_t h = geometry::Fnv1a(&latent_dim_, sizeof(latent_dim_));
   for (const auto& e : entries_) {
-    h = Fnv1a(h, e.model_id.data(), e.model_id.size());
-    h = Fnv1a(h, &e.cad_class, sizeof(e.cad_class));
-    h = Fnv1a(h, e.code.data(), static_cast<std::size_t>(e.code.size()) * sizeof(float));
+    h = geometry::Fnv1a(e.model_id.data(), e.model_id.size(), h);
+    h = geometry::Fnv1a(&e.cad_class, sizeof(e.cad_class), h);
+    h = geometry::Fnv1a(e.code.data(), static_cast<std::size_t>(e.code.size()) * sizeof(float), h);
   }
   char buf[17];
   std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));

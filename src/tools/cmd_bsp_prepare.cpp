@@ -17,6 +17,7 @@
 #include "dimr/eval/mesh_metrics.h"
 #include "dimr/eval/parallel.h"
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/hash.h"
 #include "dimr/nn/bsp_dataset.h"
 #include "dimr/nn/bsp_model.h"
 #include "dimr/pipeline/bsp_data.h"
@@ -30,14 +31,7 @@ namespace dimr::tools {
 
 namespace {
 
-std::uint64_t Fnv1a(const std::string& text) {
-  std::uint64_t h = 1469598103934665603ull;
-  for (unsigned char ch : text) {
-    h ^= ch;
-    h *= 1099511628211ull;
-  }
-  return h;
-}
+std::uint64_t Fnv1a(const std::string& text) { return geometry::Fnv1a(text.data(), text.size()); }
 
 }  // namespace
 
