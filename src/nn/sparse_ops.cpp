@@ -163,11 +163,15 @@ __attribute__((target("avx512f"))) void DirectRows(const float* __restrict x, in
 using DirectRowsFn = void (*)(const float*, int64_t, const float*, const int64_t*, const int64_t*,
                               int64_t, float*);
 
+bool HasAvx512() {
+  static const bool avx512 = __builtin_cpu_supports("avx512f");
+  return avx512;
+}
+
 // The direct kernel for this output width, or nullptr (no AVX-512, or cout not 16..128 in
 // steps of 16): the GEMM path then runs.
 DirectRowsFn DirectKernelFor(int64_t cout) {
-  static const bool avx512 = __builtin_cpu_supports("avx512f");
-  if (!avx512 || cout % 16 != 0) return nullptr;
+  if (!HasAvx512() || cout % 16 != 0) return nullptr;
   switch (cout / 16) {
     case 1:
       return &DirectRows<1, 24>;
@@ -231,8 +235,7 @@ __attribute__((target("avx512f"))) void DirectGradW(const float* __restrict x, i
 // in steps of 16 and cin a multiple of the channel tile (16 for cout 16, 8 up to 48, 4 up to 96,
 // else 2).
 DirectRowsFn DirectGradWKernelFor(int64_t cin, int64_t cout) {
-  static const bool avx512 = __builtin_cpu_supports("avx512f");
-  if (!avx512 || cout % 16 != 0 || cout < 16 || cout > 128) return nullptr;
+  if (!HasAvx512() || cout % 16 != 0 || cout < 16 || cout > 128) return nullptr;
   const int64_t v = cout / 16;
   const int64_t tile = v == 1 ? 16 : (v <= 3 ? 8 : (v <= 6 ? 4 : 2));
   if (cin % tile != 0) return nullptr;
@@ -256,8 +259,7 @@ DirectRowsFn DirectGradWKernelFor(int64_t cin, int64_t cout) {
   }
 }
 
-// out[dst] += x[src] * W over the pairs [b0, b0 + n) of one offset with a direct kernel,
-// in parallel chunks.
+// Runs a direct kernel over the pairs [b0, b0 + n) of one offset in parallel chunks of 1024.
 // `out_stride` > 0: each thread writes to out + thread * out_stride (per-thread accumulators
 // of the weight gradient); 0: all write to out (rows of out are distinct within an offset).
 void DirectOffset(DirectRowsFn kernel, const float* x, int64_t cin, const float* w,
@@ -282,13 +284,15 @@ void FusedForwardImpl(const at::Tensor& x, const at::Tensor& w, const ConvPlan& 
   const int64_t cin = w.size(1), cout = w.size(2);
   const int64_t rows = ChunkRows(cin, cout);
   const int nthreads = at::get_num_threads();
-  at::Tensor buffers = at::empty({nthreads, rows * (cin + cout)}, x.options());
+  const DirectRowsFn direct = std::is_same_v<T, float> ? DirectKernelFor(cout) : nullptr;
+  // Per-thread gather / product buffers of the GEMM path (not needed with a direct kernel).
+  const at::Tensor buffers =
+      direct ? at::Tensor() : at::empty({nthreads, rows * (cin + cout)}, x.options());
   const T* xp = x.data_ptr<T>();
   T* op = out.data_ptr<T>();
   const int64_t* si = p.src_idx.data_ptr<int64_t>();
   const int64_t* di = p.dst_idx.data_ptr<int64_t>();
   const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
-  const DirectRowsFn direct = std::is_same_v<T, float> ? DirectKernelFor(cout) : nullptr;
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -329,15 +333,6 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
   const int64_t rows = ChunkRows(cin, cout);
   const int nthreads = at::get_num_threads();
   const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
-  // Per thread: gathered grad_out [rows, cout], gathered x [rows, cin], product [rows, cin].
-  at::Tensor buffers = at::empty({nthreads, rows * (cout + 2 * cin)}, x.options());
-  at::Tensor acc;
-  if (gw) acc = at::zeros({nthreads, kv, cin, cout}, x.options());
-  const T* xp = x.data_ptr<T>();
-  const T* gp = gout.data_ptr<T>();
-  T* gxp = gx ? gx->data_ptr<T>() : nullptr;
-  const int64_t* si = p.src_idx.data_ptr<int64_t>();
-  const int64_t* di = p.dst_idx.data_ptr<int64_t>();
   // Input gradient gx[src] += g[dst] * W_k^T: the direct kernel of width cin on the transposed
   // weights where it applies, else a GEMM per chunk below.
   const DirectRowsFn direct = gx && std::is_same_v<T, float> ? DirectKernelFor(cin) : nullptr;
@@ -345,6 +340,18 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
   // Weight gradient: the direct kernel into the per-thread accumulators, else a GEMM per chunk.
   const DirectRowsFn direct_w =
       gw && std::is_same_v<T, float> ? DirectGradWKernelFor(cin, cout) : nullptr;
+  const bool all_direct = (direct || !gx) && (direct_w || !gw);
+  // GEMM path, per thread: gathered grad_out [rows, cout], gathered x [rows, cin], product
+  // [rows, cin].
+  const at::Tensor buffers =
+      all_direct ? at::Tensor() : at::empty({nthreads, rows * (cout + 2 * cin)}, x.options());
+  at::Tensor acc;
+  if (gw) acc = at::zeros({nthreads, kv, cin, cout}, x.options());
+  const T* xp = x.data_ptr<T>();
+  const T* gp = gout.data_ptr<T>();
+  T* gxp = gx ? gx->data_ptr<T>() : nullptr;
+  const int64_t* si = p.src_idx.data_ptr<int64_t>();
+  const int64_t* di = p.dst_idx.data_ptr<int64_t>();
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -363,7 +370,7 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
         DirectOffset(direct_w, xp, cin, gp, si, di, b0, n, acc.data_ptr<float>() + k * cin * cout,
                      kv * cin * cout);
       }
-      if ((direct || !gx) && (direct_w || !gw)) continue;
+      if (all_direct) continue;
     }
     const int64_t nchunks = (n + rows - 1) / rows;
     at::parallel_for(0, nchunks, 1, [&](int64_t cb, int64_t ce) {

@@ -221,13 +221,17 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   });
   int best_epoch = 0;
   double best = -1.0;
-  if (!opt.best_path.empty() && nn::ReadKeptEpoch(opt.best_path, &best_epoch, &best)) {
+  const bool kept = !opt.best_path.empty() && nn::ReadKeptEpoch(opt.best_path, &best_epoch, &best);
+  if (kept) {
     model = nn::BspModel::Load(opt.best_path);
     std::printf("kept epoch %d (best validation IoU %.4f of the run)\n", best_epoch, best);
   }
-  const double val_iou = val.samples.empty()
-                             ? -1.0
-                             : model.EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation);
+  // The kept epoch's validation IoU is on record; otherwise evaluate the final weights.
+  const double val_iou =
+      kept ? best
+           : (val.samples.empty()
+                  ? -1.0
+                  : model.EvaluateIoU(val, opt.val_dilation, opt.val_distance_dilation));
   const std::string weights = a.out + "/bsp.pt";
   model.Save(weights, a.fp16);
   WriteModelCard(a.out, model, a, command, logs, best_epoch, val_iou, opt.val_dilation,
