@@ -38,6 +38,8 @@ struct ConvPlan {
   int64_t identity = -1;
   int64_t n_src = 0;
   int64_t n_dst = 0;
+  bool mirror_symmetric = false;  // see Rulebook
+  at::Tensor blocks;              // Rulebook::OutBlocks() for out_sorted CPU plans, else undefined
 };
 
 ConvPlan MakePlan(const Rulebook& rb, bool transpose, const at::Device& device) {
@@ -50,6 +52,8 @@ ConvPlan MakePlan(const Rulebook& rb, bool transpose, const at::Device& device) 
     p.dst_idx = idx.second;
     p.n_src = rb.num_in;
     p.n_dst = rb.num_out;
+    p.mirror_symmetric = rb.mirror_symmetric;
+    if (device.is_cpu()) p.blocks = rb.OutBlocks();
   } else {
     p.src_idx = idx.second;
     p.dst_idx = idx.first;
@@ -115,49 +119,82 @@ inline void ScatterAddRows(double* dst, const double* src, const int64_t* idx, i
 }
 
 // ---------------------------------------------------------------------------------------
-// Direct kernel (float, AVX-512): out[dst[r]] += x[src[r]] * W for the pairs of one kernel
-// offset, W row-major [cin, cout] with cout = 16 V. A block of R pairs keeps its R x V output
+// Direct kernels (float, AVX-512): out[dst[r]] += x[src[r]] * W for the pairs of one kernel
+// offset, W row-major [cin, cout] with cout = 16 V P. A tile of R pairs keeps its R x V output
 // vectors in registers while the cin loop broadcasts one input value per pair against the V
 // vectors of a weight row, so rows are read from x and added to out once, without the gather /
-// product buffers of the GEMM path (whose small-N GEMMs run well below peak). R V + V <= 30
-// zmm registers. Within one offset every dst row occurs once, so chunks of pairs run in
-// parallel without races (as in the GEMM path). Keep the accumulator loops written out in each
-// kernel: zeroing them with std::fill and adding them through a shared helper taking acc[r]
-// made the stage-1 U-Net forward ~10 % slower (measured 2026-11-27, 361 -> 410 ms).
+// product buffers of the GEMM path (whose small-N GEMMs run well below peak). Wide outputs run
+// in P passes of 16 V columns over the same R rows (still in L1). R V + V <= 30 zmm registers.
+// Shapes (measured 2026-11-27 on Zen 5, L1-resident): the loop is bound by the V vector loads
+// per step, not by the R broadcasts, so tall tiles win: R >= 6 with V <= 4 reach 205-220
+// GFLOP/s, R = 4 x V = 6 only 173 and R = 4 x V = 4 161 (one core's FMA peak is ~218).
+// Within one offset every dst row occurs once, so chunks of pairs (or blocks of output rows)
+// run in parallel without races. Keep the accumulator loops written out in the tile: zeroing
+// them with std::fill and adding them through a shared helper taking acc[r] made the stage-1
+// U-Net forward ~10 % slower (measured 2026-11-27, 361 -> 410 ms).
 // ---------------------------------------------------------------------------------------
-template <int V, int R>
-__attribute__((target("avx512f"))) void DirectRows(const float* __restrict x, int64_t cin,
-                                                   const float* __restrict w, const int64_t* src,
-                                                   const int64_t* dst, int64_t rows,
-                                                   float* __restrict out) {
-  constexpr int64_t cout = 16 * V;
-  int64_t b = 0;
-  for (; b + R <= rows; b += R) {
-    const float* xr[R];
-    for (int r = 0; r < R; ++r) xr[r] = x + src[b + r] * cin;
-    if (b + 2 * R <= rows) {
-      for (int r = 0; r < R; ++r) PrefetchRow(x + src[b + R + r] * cin, cin);
-    }
+template <int V, int R, int P>
+__attribute__((target("avx512f"), always_inline)) inline void DirectTile(
+    const float* __restrict x, int64_t cin, const float* __restrict w, const int64_t* src,
+    const int64_t* dst, float* __restrict out) {
+  constexpr int64_t cout = 16 * V * P;
+  const float* xr[R];
+  for (int r = 0; r < R; ++r) xr[r] = x + src[r] * cin;
+  for (int p = 0; p < P; ++p) {
+    const float* wp = w + 16 * V * p;
     __m512 acc[R][V];
     for (int r = 0; r < R; ++r) {
       for (int v = 0; v < V; ++v) acc[r][v] = _mm512_setzero_ps();
     }
     for (int64_t c = 0; c < cin; ++c) {
       __m512 wv[V];
-      for (int v = 0; v < V; ++v) wv[v] = _mm512_loadu_ps(w + c * cout + 16 * v);
+      for (int v = 0; v < V; ++v) wv[v] = _mm512_loadu_ps(wp + c * cout + 16 * v);
       for (int r = 0; r < R; ++r) {
         const __m512 xb = _mm512_set1_ps(xr[r][c]);
         for (int v = 0; v < V; ++v) acc[r][v] = _mm512_fmadd_ps(xb, wv[v], acc[r][v]);
       }
     }
     for (int r = 0; r < R; ++r) {
-      float* o = out + dst[b + r] * cout;
+      float* o = out + dst[r] * cout + 16 * V * p;
       for (int v = 0; v < V; ++v) {
         _mm512_storeu_ps(o + 16 * v, _mm512_add_ps(_mm512_loadu_ps(o + 16 * v), acc[r][v]));
       }
     }
   }
-  if (b < rows) DirectRows<V, 1>(x, cin, w, src + b, dst + b, rows - b, out);
+}
+
+// The last rows < R of a pair list: one tile of exactly that many rows (a one-row tile would
+// run at a quarter of the speed, and output-stationary blocks leave ~R / 2 rows per offset).
+template <int V, int Q, int P>
+__attribute__((target("avx512f"), always_inline)) inline void DirectRemainder(
+    const float* x, int64_t cin, const float* w, const int64_t* src, const int64_t* dst,
+    int64_t rows, float* out) {
+  if constexpr (Q >= 1) {
+    if (rows == Q) {
+      DirectTile<V, Q, P>(x, cin, w, src, dst, out);
+    } else {
+      DirectRemainder<V, Q - 1, P>(x, cin, w, src, dst, rows, out);
+    }
+  }
+}
+
+template <int V, int R, int P>
+__attribute__((target("avx512f"))) void DirectRows(const float* __restrict x, int64_t cin,
+                                                   const float* __restrict w, const int64_t* src,
+                                                   const int64_t* dst, int64_t rows,
+                                                   float* __restrict out) {
+  constexpr int64_t cout = 16 * V * P;
+  int64_t b = 0;
+  for (; b + R <= rows; b += R) {
+    if (b + 2 * R <= rows) {
+      for (int r = 0; r < R; ++r) {
+        PrefetchRow(x + src[b + R + r] * cin, cin);
+        PrefetchRow(out + dst[b + R + r] * cout, cout);
+      }
+    }
+    DirectTile<V, R, P>(x, cin, w, src + b, dst + b, out);
+  }
+  if (b < rows) DirectRemainder<V, R - 1, P>(x, cin, w, src + b, dst + b, rows - b, out);
 }
 
 using DirectRowsFn = void (*)(const float*, int64_t, const float*, const int64_t*, const int64_t*,
@@ -174,88 +211,93 @@ DirectRowsFn DirectKernelFor(int64_t cout) {
   if (!HasAvx512() || cout % 16 != 0) return nullptr;
   switch (cout / 16) {
     case 1:
-      return &DirectRows<1, 24>;
+      return &DirectRows<1, 16, 1>;
     case 2:
-      return &DirectRows<2, 12>;
+      return &DirectRows<2, 12, 1>;
     case 3:
-      return &DirectRows<3, 8>;
+      return &DirectRows<3, 8, 1>;
     case 4:
-      return &DirectRows<4, 6>;
+      return &DirectRows<4, 6, 1>;
     case 5:
-      return &DirectRows<5, 5>;
+      return &DirectRows<5, 5, 1>;
     case 6:
-      return &DirectRows<6, 4>;
+      return &DirectRows<3, 8, 2>;
     case 7:
-      return &DirectRows<7, 3>;
+      return &DirectRows<7, 3, 1>;
     case 8:
-      return &DirectRows<8, 3>;
+      return &DirectRows<4, 6, 2>;
     default:
       return nullptr;
   }
 }
 
 // Weight gradient of one offset, gw[cin, cout] += sum over pairs of x[src[r]]^T g[dst[r]], with
-// cout = 16 V: a tile of T input channels x V vectors stays in registers over all pairs of the
-// call (<= 1024, so float sums stay short), one pass over the pairs per tile.
-template <int V, int T>
+// cout = 16 V P: a tile of T input channels x V vectors stays in registers over all pairs of the
+// call (<= 1024, so float sums stay short), one pass over the pairs per tile. T is the number of
+// broadcasts per step, so again tall tiles (T = 8, V <= 3) run fastest.
+template <int V, int T, int P>
 __attribute__((target("avx512f"))) void DirectGradW(const float* __restrict x, int64_t cin,
                                                     const float* __restrict g, const int64_t* src,
                                                     const int64_t* dst, int64_t rows,
                                                     float* __restrict gw) {
-  constexpr int64_t cout = 16 * V;
-  for (int64_t c0 = 0; c0 < cin; c0 += T) {
-    __m512 acc[T][V];
-    for (int t = 0; t < T; ++t) {
-      for (int v = 0; v < V; ++v) acc[t][v] = _mm512_setzero_ps();
-    }
-    for (int64_t r = 0; r < rows; ++r) {
-      if (r + kPrefetchAhead < rows) {
-        PrefetchRow(g + dst[r + kPrefetchAhead] * cout, cout);
-        __builtin_prefetch(x + src[r + kPrefetchAhead] * cin + c0);
-      }
-      const float* gr = g + dst[r] * cout;
-      const float* xr = x + src[r] * cin + c0;
-      __m512 gv[V];
-      for (int v = 0; v < V; ++v) gv[v] = _mm512_loadu_ps(gr + 16 * v);
+  constexpr int64_t cout = 16 * V * P;
+  for (int p = 0; p < P; ++p) {
+    const float* gp = g + 16 * V * p;
+    for (int64_t c0 = 0; c0 < cin; c0 += T) {
+      __m512 acc[T][V];
       for (int t = 0; t < T; ++t) {
-        const __m512 xb = _mm512_set1_ps(xr[t]);
-        for (int v = 0; v < V; ++v) acc[t][v] = _mm512_fmadd_ps(xb, gv[v], acc[t][v]);
+        for (int v = 0; v < V; ++v) acc[t][v] = _mm512_setzero_ps();
       }
-    }
-    for (int t = 0; t < T; ++t) {
-      float* o = gw + (c0 + t) * cout;
-      for (int v = 0; v < V; ++v) {
-        _mm512_storeu_ps(o + 16 * v, _mm512_add_ps(_mm512_loadu_ps(o + 16 * v), acc[t][v]));
+      for (int64_t r = 0; r < rows; ++r) {
+        if (r + kPrefetchAhead < rows) {
+          const char* gn = reinterpret_cast<const char*>(gp + dst[r + kPrefetchAhead] * cout);
+          for (int v = 0; v < V; ++v) __builtin_prefetch(gn + 64 * v);
+          __builtin_prefetch(x + src[r + kPrefetchAhead] * cin + c0);
+        }
+        const float* gr = gp + dst[r] * cout;
+        const float* xr = x + src[r] * cin + c0;
+        __m512 gv[V];
+        for (int v = 0; v < V; ++v) gv[v] = _mm512_loadu_ps(gr + 16 * v);
+        for (int t = 0; t < T; ++t) {
+          const __m512 xb = _mm512_set1_ps(xr[t]);
+          for (int v = 0; v < V; ++v) acc[t][v] = _mm512_fmadd_ps(xb, gv[v], acc[t][v]);
+        }
+      }
+      for (int t = 0; t < T; ++t) {
+        float* o = gw + (c0 + t) * cout + 16 * V * p;
+        for (int v = 0; v < V; ++v) {
+          _mm512_storeu_ps(o + 16 * v, _mm512_add_ps(_mm512_loadu_ps(o + 16 * v), acc[t][v]));
+        }
       }
     }
   }
 }
 
 // The weight-gradient kernel for these widths, or nullptr (the GEMM path then runs): cout 16..128
-// in steps of 16 and cin a multiple of the channel tile (16 for cout 16, 8 up to 48, 4 up to 96,
-// else 2).
+// in steps of 16 and cin a multiple of the channel tile (16 for cout 16, 4 for cout 80, 2 for
+// cout 112, else 8).
 DirectRowsFn DirectGradWKernelFor(int64_t cin, int64_t cout) {
   if (!HasAvx512() || cout % 16 != 0 || cout < 16 || cout > 128) return nullptr;
   const int64_t v = cout / 16;
-  const int64_t tile = v == 1 ? 16 : (v <= 3 ? 8 : (v <= 6 ? 4 : 2));
+  const int64_t tile = v == 1 ? 16 : (v == 5 ? 4 : (v == 7 ? 2 : 8));
   if (cin % tile != 0) return nullptr;
   switch (v) {
     case 1:
-      return &DirectGradW<1, 16>;
+      return &DirectGradW<1, 16, 1>;
     case 2:
-      return &DirectGradW<2, 8>;
+      return &DirectGradW<2, 8, 1>;
     case 3:
-      return &DirectGradW<3, 8>;
+      return &DirectGradW<3, 8, 1>;
     case 4:
-      return &DirectGradW<4, 4>;
+      return &DirectGradW<2, 8, 2>;
     case 5:
-      return &DirectGradW<5, 4>;
+      return &DirectGradW<5, 4, 1>;
     case 6:
-      return &DirectGradW<6, 4>;
+      return &DirectGradW<3, 8, 2>;
     case 7:
-      return &DirectGradW<7, 2>;
+      return &DirectGradW<7, 2, 1>;
     default:
-      return &DirectGradW<8, 2>;
+      return &DirectGradW<2, 8, 4>;
   }
 }
 
@@ -293,6 +335,24 @@ void FusedForwardImpl(const at::Tensor& x, const at::Tensor& w, const ConvPlan& 
   const int64_t* si = p.src_idx.data_ptr<int64_t>();
   const int64_t* di = p.dst_idx.data_ptr<int64_t>();
   const int64_t kv = static_cast<int64_t>(p.offsets.size()) - 1;
+  if constexpr (std::is_same_v<T, float>) {
+    if (direct && p.blocks.defined()) {
+      // Output-stationary: each block of output rows takes all offsets in turn, so its rows stay
+      // in cache and the input rows it needs (a few neighbouring slabs of sorted sites) are read
+      // from memory about once, instead of sweeping all of x and out once per offset.
+      const int64_t* bt = p.blocks.data_ptr<int64_t>();
+      const float* wp = w.data_ptr<float>();
+      at::parallel_for(0, p.blocks.size(0) - 1, 1, [&](int64_t bb, int64_t be) {
+        for (int64_t b = bb; b < be; ++b) {
+          for (int64_t k = 0; k < kv; ++k) {
+            const int64_t lo = bt[b * kv + k], hi = bt[(b + 1) * kv + k];
+            if (hi > lo) direct(xp, cin, wp + k * cin * cout, si + lo, di + lo, hi - lo, op);
+          }
+        }
+      });
+      return;
+    }
+  }
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -336,11 +396,13 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
   // Input gradient gx[src] += g[dst] * W_k^T: the direct kernel of width cin on the transposed
   // weights where it applies, else a GEMM per chunk below.
   const DirectRowsFn direct = gx && std::is_same_v<T, float> ? DirectKernelFor(cin) : nullptr;
-  const at::Tensor wt = direct ? w.transpose(1, 2).contiguous() : at::Tensor();
   // Weight gradient: the direct kernel into the per-thread accumulators, else a GEMM per chunk.
   const DirectRowsFn direct_w =
       gw && std::is_same_v<T, float> ? DirectGradWKernelFor(cin, cout) : nullptr;
   const bool all_direct = (direct || !gx) && (direct_w || !gw);
+  const bool blocked =
+      std::is_same_v<T, float> && all_direct && p.blocks.defined() && (!gx || p.mirror_symmetric);
+  const at::Tensor wt = direct && !blocked ? w.transpose(1, 2).contiguous() : at::Tensor();
   // GEMM path, per thread: gathered grad_out [rows, cout], gathered x [rows, cin], product
   // [rows, cin].
   const at::Tensor buffers =
@@ -352,6 +414,31 @@ void FusedBackwardImpl(const at::Tensor& x, const at::Tensor& w, const at::Tenso
   T* gxp = gx ? gx->data_ptr<T>() : nullptr;
   const int64_t* si = p.src_idx.data_ptr<int64_t>();
   const int64_t* di = p.dst_idx.data_ptr<int64_t>();
+  if constexpr (std::is_same_v<T, float>) {
+    if (blocked) {
+      // Output-stationary over blocks of output rows, as in the forward. The input gradient
+      // gx[s] += g[d] W_k^T of the pairs (s, d) of offset k is, by the mirror symmetry, a
+      // forward over the pairs (d, s) of offset kv - 1 - k: gx[row] gathers from g through the
+      // same output-sorted pairs, with the weights W_{kv-1-j}^T for offset j.
+      const at::Tensor wm = gx ? w.flip(0).transpose(1, 2).contiguous() : at::Tensor();
+      const float* wmp = gx ? wm.data_ptr<float>() : nullptr;
+      const int64_t* bt = p.blocks.data_ptr<int64_t>();
+      float* accp = gw ? acc.data_ptr<float>() : nullptr;
+      at::parallel_for(0, p.blocks.size(0) - 1, 1, [&](int64_t bb, int64_t be) {
+        float* acct = gw ? accp + at::get_thread_num() * kv * cin * cout : nullptr;
+        for (int64_t b = bb; b < be; ++b) {
+          for (int64_t k = 0; k < kv; ++k) {
+            const int64_t lo = bt[b * kv + k], n = bt[(b + 1) * kv + k] - lo;
+            if (n <= 0) continue;
+            if (gx) direct(gp, cout, wmp + k * cin * cout, si + lo, di + lo, n, gxp);
+            if (gw) direct_w(xp, cin, gp, si + lo, di + lo, n, acct + k * cin * cout);
+          }
+        }
+      });
+      if (gw) gw->add_(acc.sum(0));
+      return;
+    }
+  }
   for (int64_t k = 0; k < kv; ++k) {
     const int64_t b0 = p.offsets[k], n = p.offsets[k + 1] - b0;
     if (n == 0) continue;
@@ -443,9 +530,9 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
  public:
   static at::Tensor forward(AutogradContext* ctx, const at::Tensor& x, const at::Tensor& w,
                             const at::Tensor& src_idx, const at::Tensor& dst_idx,
-                            std::vector<int64_t> meta, bool fused) {
-    // meta = [identity, n_src, n_dst, offsets...]
-    ConvPlan p = PlanFromMeta(src_idx, dst_idx, meta);
+                            const at::Tensor& blocks, std::vector<int64_t> meta, bool fused) {
+    // meta = [identity, n_src, n_dst, mirror_symmetric, offsets...]; blocks may be undefined.
+    ConvPlan p = PlanFromMeta(src_idx, dst_idx, blocks, meta);
     at::Tensor xc = x.detach().contiguous();
     at::Tensor wc = w.detach().contiguous();
     at::Tensor out;
@@ -458,6 +545,7 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
     }
     ctx->save_for_backward({x, w, src_idx, dst_idx});
     ctx->saved_data["meta"] = meta;
+    if (p.blocks.defined()) ctx->saved_data["blocks"] = p.blocks;
     ctx->saved_data["fused"] = fused;
     return out;
   }
@@ -468,7 +556,9 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
     const at::Tensor w = saved[1].detach().contiguous();
     std::vector<int64_t> meta = ctx->saved_data["meta"].toIntVector();
     const bool fused = ctx->saved_data["fused"].toBool();
-    ConvPlan p = PlanFromMeta(saved[2], saved[3], meta);
+    const at::Tensor blocks =
+        ctx->saved_data.count("blocks") ? ctx->saved_data["blocks"].toTensor() : at::Tensor();
+    ConvPlan p = PlanFromMeta(saved[2], saved[3], blocks, meta);
     const at::Tensor g = grads[0].detach().contiguous();
     const bool need_x = ctx->needs_input_grad(0), need_w = ctx->needs_input_grad(1);
     at::Tensor gx, gw;
@@ -483,19 +573,21 @@ class ConvFunction : public torch::autograd::Function<ConvFunction> {
         TorchOpsBackward(x, w, g, p, need_x ? &gx : nullptr, need_w ? &gw : nullptr);
       }
     }
-    return {gx, gw, at::Tensor(), at::Tensor(), at::Tensor(), at::Tensor()};
+    return {gx, gw, at::Tensor(), at::Tensor(), at::Tensor(), at::Tensor(), at::Tensor()};
   }
 
  private:
   static ConvPlan PlanFromMeta(const at::Tensor& src, const at::Tensor& dst,
-                               const std::vector<int64_t>& meta) {
+                               const at::Tensor& blocks, const std::vector<int64_t>& meta) {
     ConvPlan p;
     p.src_idx = src;
     p.dst_idx = dst;
+    if (blocks.defined() && blocks.numel() > 0) p.blocks = blocks;
     p.identity = meta[0];
     p.n_src = meta[1];
     p.n_dst = meta[2];
-    p.offsets.assign(meta.begin() + 3, meta.end());
+    p.mirror_symmetric = meta[3] != 0;
+    p.offsets.assign(meta.begin() + 4, meta.end());
     return p;
   }
 };
@@ -752,9 +844,11 @@ at::Tensor RulebookConv(const at::Tensor& features, const at::Tensor& weight, co
   }
   const bool fused = UseFused(backend, features.device());
   ConvPlan p = MakePlan(rb, transpose, features.device());
-  std::vector<int64_t> meta{p.identity, p.n_src, p.n_dst};
+  std::vector<int64_t> meta{p.identity, p.n_src, p.n_dst, p.mirror_symmetric ? 1 : 0};
   meta.insert(meta.end(), p.offsets.begin(), p.offsets.end());
-  return ConvFunction::apply(features, weight, p.src_idx, p.dst_idx, meta, fused);
+  // (autograd functions take no undefined tensors: an empty one stands for "no blocks")
+  const at::Tensor blocks = p.blocks.defined() ? p.blocks : at::empty({0}, at::kLong);
+  return ConvFunction::apply(features, weight, p.src_idx, p.dst_idx, blocks, meta, fused);
 }
 
 SparseTensor SubMConv3d(const SparseTensor& x, const at::Tensor& weight) {
@@ -900,7 +994,8 @@ VoxelMap BuildVoxelMap(const at::Tensor& point_coords) {
   while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
   std::vector<uint64_t> keys(cap, 0);
   std::vector<int64_t> vals(cap, -1);
-  std::vector<int32_t> vc;
+  // (packed key, id in order of first occurrence) of each voxel.
+  std::vector<std::pair<uint64_t, int64_t>> uniq;
   int64_t m = 0;
   for (int64_t i = 0; i < n; ++i) {
     const int32_t* s = cp + 4 * i;
@@ -911,10 +1006,25 @@ VoxelMap BuildVoxelMap(const at::Tensor& point_coords) {
     if (keys[h] == 0) {
       keys[h] = key;
       vals[h] = m++;
-      vc.insert(vc.end(), s, s + 4);
+      uniq.emplace_back(key - 1, vals[h]);
     }
     p2v[i] = vals[h];
   }
+  // Number the voxels in (b, x, y, z) order (the packed key's order): neighbouring sites get
+  // nearby rows, so the sparse kernels' row gathers / scatters stream through memory instead of
+  // jumping (the fused SubM3 forward on a 2 cm room: 1.3x faster than first-occurrence order).
+  std::sort(uniq.begin(), uniq.end());
+  std::vector<int64_t> rank(static_cast<size_t>(m));
+  std::vector<int32_t> vc(static_cast<size_t>(4 * m));
+  for (int64_t r = 0; r < m; ++r) {
+    const auto& [key, first] = uniq[static_cast<size_t>(r)];
+    rank[static_cast<size_t>(first)] = r;
+    vc[4 * r] = static_cast<int32_t>(key >> 48);
+    vc[4 * r + 1] = static_cast<int32_t>((key >> 32) & 0xFFFF);
+    vc[4 * r + 2] = static_cast<int32_t>((key >> 16) & 0xFFFF);
+    vc[4 * r + 3] = static_cast<int32_t>(key & 0xFFFF);
+  }
+  for (int64_t i = 0; i < n; ++i) p2v[i] = rank[static_cast<size_t>(p2v[i])];
   map.voxel_coords = at::from_blob(vc.data(), {m, 4}, at::kInt).clone();
   map.voxel_offsets = at::zeros({m + 1}, at::kLong);
   int64_t* off = map.voxel_offsets.data_ptr<int64_t>();

@@ -3,6 +3,7 @@
 
 #include <ATen/Parallel.h>
 
+#include <algorithm>
 #include <sstream>
 #include <string>
 
@@ -103,6 +104,25 @@ std::pair<at::Tensor, at::Tensor> Rulebook::OnDevice(const at::Device& device) c
   return pair;
 }
 
+at::Tensor Rulebook::OutBlocks() const {
+  if (!out_sorted) return at::Tensor();
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (out_blocks_.defined()) return out_blocks_;
+  const int64_t kv = kernel_volume;
+  const int64_t nb = (num_out + kOutBlock - 1) / kOutBlock;
+  at::Tensor t = at::empty({nb + 1, kv}, at::kLong);
+  int64_t* tp = t.data_ptr<int64_t>();
+  const int64_t* out = out_idx.data_ptr<int64_t>();
+  for (int64_t k = 0; k < kv; ++k) {
+    const int64_t* lo = out + offsets[k];
+    const int64_t* hi = out + offsets[k + 1];
+    for (int64_t b = 0; b <= nb; ++b)
+      tp[b * kv + k] = std::lower_bound(lo, hi, b * kOutBlock) - out;
+  }
+  out_blocks_ = t;
+  return out_blocks_;
+}
+
 SparseContext::SparseContext(at::Tensor coords, std::array<int64_t, 3> spatial_shape,
                              int64_t batch_size)
     : batch_size_(batch_size) {
@@ -193,6 +213,8 @@ const Rulebook& SparseContext::Subm3(int64_t stride) {
   });
   lv.subm3 = Assemble(ins, outs, n, n);
   lv.subm3->identity_offset = 13;
+  lv.subm3->mirror_symmetric = true;  // offset 26 - k is offset k reversed (neighbours are mutual)
+  lv.subm3->out_sorted = true;        // each offset's pairs were made in ascending output row
   return *lv.subm3;
 }
 

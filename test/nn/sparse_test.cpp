@@ -162,6 +162,45 @@ TEST(SparseConv, SubmanifoldAllKernelWidthsMatchDenseConv3d) {
   }
 }
 
+// The fused float path runs sub-manifold convs output-stationary: blocks of
+// Rulebook::kOutBlock output rows, each taking all 27 offsets, in parallel; the input gradient
+// through the mirrored offsets. Several blocks (the last one partial), two threads, tile
+// remainders of every size, wide outputs in two passes, and the weight gradient alone.
+TEST(SparseConv, OutputStationaryBlocksAndThreadsMatchDenseConv3d) {
+  const Shape3 shape{20, 18, 16};
+  at::Tensor coords = RandomSites(2, shape, 1400, 91);
+  SparseTensor probe(coords, at::zeros({coords.size(0), 1}), shape, 2);
+  const Rulebook& rb = probe.context()->Subm3(1);
+  ASSERT_TRUE(rb.out_sorted && rb.mirror_symmetric);
+  const at::Tensor blocks = rb.OutBlocks();
+  const int64_t nb = (coords.size(0) + Rulebook::kOutBlock - 1) / Rulebook::kOutBlock;
+  ASSERT_EQ(nb, 6);
+  ASSERT_EQ(blocks.sizes(), (std::vector<int64_t>{nb + 1, 27}));
+  for (int64_t k = 0; k < 27; ++k) {
+    EXPECT_EQ(blocks[0][k].item<int64_t>(), rb.offsets[k]);
+    EXPECT_EQ(blocks[nb][k].item<int64_t>(), rb.offsets[k + 1]);
+    // Mirror symmetry: offset 26 - k holds the pairs of offset k reversed.
+    EXPECT_EQ(rb.offsets[k + 1] - rb.offsets[k], rb.offsets[27 - k] - rb.offsets[26 - k]);
+  }
+  const int saved_threads = at::get_num_threads();
+  at::set_num_threads(2);
+  BackendGuard g(SparseBackend::kFused);
+  const std::vector<std::pair<int64_t, int64_t>> widths = {{16, 32}, {64, 96}, {32, 128}, {96, 64}};
+  for (const auto& [cin, cout] : widths) {
+    at::Tensor x = at::randn({coords.size(0), cin});
+    at::Tensor w = at::randn({3, 3, 3, cin, cout}) * 0.2;
+    at::Tensor r = at::randn({coords.size(0), cout});
+    const std::string what = std::to_string(cin) + "->" + std::to_string(cout);
+    const Grads ref = DenseSubM3(coords, shape, x, w, r);
+    ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4, "blocked subm3 " + what);
+    // Weight gradient only (input without grad, as for a network's first layer).
+    at::Tensor wg = w.clone().set_requires_grad(true);
+    (SubMConv3d(SparseTensor(coords, x, shape, 2), wg).features() * r).sum().backward();
+    EXPECT_LT(RelErr(wg.grad(), ref.gw), 1e-4) << "blocked subm3 weight grad only " << what;
+  }
+  at::set_num_threads(saved_threads);
+}
+
 TEST(SparseConv, SingleSiteUsesOnlyCentreTap) {
   at::Tensor coords = at::tensor({0, 3, 3, 3}, at::kInt).view({1, 4});
   at::Tensor x = at::randn({1, 2}, at::kDouble);
@@ -466,6 +505,20 @@ TEST(Voxelize, MeanFeaturesGatherAndGradients) {
   }
   Voxelized vox = Voxelize(vc, pts, 2, {128, 128, 128});
   EXPECT_EQ(vox.tensor.num_sites(), 3);
+  // Voxels are numbered in (b, x, y, z) order whatever the point order (kernel locality).
+  at::Tensor many = at::randint(0, 6, {400, 4}, at::kInt);
+  many.select(1, 0).remainder_(2);
+  VoxelMap mm = BuildVoxelMap(many);
+  const at::Tensor keys =
+      (((mm.voxel_coords.select(1, 0).to(at::kLong) * 8 + mm.voxel_coords.select(1, 1)) * 8 +
+        mm.voxel_coords.select(1, 2)) *
+           8 +
+       mm.voxel_coords.select(1, 3));
+  EXPECT_GT(mm.num_voxels(), 200);
+  EXPECT_TRUE(
+      at::all(keys.narrow(0, 1, mm.num_voxels() - 1) > keys.narrow(0, 0, mm.num_voxels() - 1))
+          .item<bool>());
+  EXPECT_TRUE(at::equal(mm.voxel_coords.index_select(0, mm.point_to_voxel), many));
   EXPECT_EQ(vox.tensor.spatial_shape(), (Shape3{128, 128, 128}));
 }
 

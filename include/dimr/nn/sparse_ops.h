@@ -50,7 +50,8 @@ at::Tensor SegmentPool(const at::Tensor& features, const at::Tensor& segment, in
 // Pool per batch element: [batch_size, C].
 at::Tensor BatchPool(const SparseTensor& x, PoolMode mode);
 
-// Point -> voxel map (voxels numbered in order of first occurrence).
+// Point -> voxel map. Voxels are numbered in (b, x, y, z) lexicographic order, whatever the
+// order of the points (memory locality of the sparse kernels; docs/sparse.md).
 struct VoxelMap {
   at::Tensor point_to_voxel;  // [N] int64
   at::Tensor voxel_offsets;   // [M + 1] int64, CSR over voxel_points

@@ -48,6 +48,17 @@ struct Rulebook {
   at::Tensor in_idx;             // [P] int64 CPU
   at::Tensor out_idx;            // [P] int64 CPU
   std::vector<int64_t> offsets;  // kernel_volume + 1
+  // Sub-manifold rulebooks: the pairs of offset k are those of offset kernel_volume - 1 - k with
+  // input and output swapped (mirror_symmetric), and inside each offset the pairs ascend by output
+  // row (out_sorted). The fused CPU kernels then run output-stationary (docs/sparse.md).
+  bool mirror_symmetric = false;
+  bool out_sorted = false;
+  // Output rows per block of the output-stationary kernels.
+  static constexpr int64_t kOutBlock = 512;
+  // For out_sorted rulebooks: [num_blocks + 1, kernel_volume] int64 CPU; entry (b, k) is the
+  // index of the first pair of offset k whose output row is >= b * kOutBlock (built on first
+  // use). An undefined tensor otherwise.
+  at::Tensor OutBlocks() const;
   // Index tensors on another device (e.g. CUDA), built on first use.
   std::pair<at::Tensor, at::Tensor> OnDevice(const at::Device& device) const;
   int64_t num_pairs() const { return offsets.empty() ? 0 : offsets.back(); }
@@ -55,6 +66,7 @@ struct Rulebook {
  private:
   mutable std::mutex mutex_;
   mutable std::map<std::string, std::pair<at::Tensor, at::Tensor>> device_cache_;
+  mutable at::Tensor out_blocks_;
 };
 
 // All stride levels of one sparse forward pass.
