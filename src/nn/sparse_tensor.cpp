@@ -158,7 +158,18 @@ SparseContext::SparseContext(at::Tensor coords, std::array<int64_t, 3> spatial_s
       throw InvalidArgument(os.str());
     }
   }
-  level.hash = std::make_shared<SiteHash>(level.coords);
+  // Sorted sites (what Voxelize makes) need no hash: strictly ascending keys are also unique.
+  level.keys.resize(static_cast<size_t>(n));
+  level.sorted = true;
+  for (int64_t i = 0; i < n; ++i) {
+    level.keys[i] = SiteHash::Pack(c[4 * i], c[4 * i + 1], c[4 * i + 2], c[4 * i + 3]);
+    if (i > 0 && level.keys[i] <= level.keys[i - 1]) level.sorted = false;
+  }
+  if (!level.sorted) {
+    level.keys.clear();
+    level.keys.shrink_to_fit();
+    level.hash = std::make_shared<SiteHash>(level.coords);  // also rejects duplicates
+  }
   levels_.emplace(1, std::move(level));
 }
 
@@ -186,8 +197,49 @@ const Rulebook& SparseContext::Subm3(int64_t stride) {
   if (lv.subm3) return *lv.subm3;
   const int64_t n = lv.coords.size(0);
   const int32_t* c = lv.coords.data_ptr<int32_t>();
-  const SiteHash& hash = *lv.hash;
   std::vector<std::vector<int64_t>> ins(27), outs(27);
+  if (lv.sorted) {
+    // Sorted sites: for a fixed offset the neighbour keys of rows 0..n-1 ascend too (translation
+    // keeps the lexicographic order; keys leaving [0, 65535] are skipped), so one forward walk
+    // over the sorted keys finds them all - no hash probes, O(n) per offset, and the pairs come
+    // out in ascending output row as for the hash path.
+    const uint64_t* keys = lv.keys.data();
+    at::parallel_for(0, 27, 1, [&](int64_t kb, int64_t ke) {
+      for (int64_t k = kb; k < ke; ++k) {
+        const int32_t d[3] = {static_cast<int32_t>(k / 9 - 1),
+                              static_cast<int32_t>((k / 3) % 3 - 1),
+                              static_cast<int32_t>(k % 3 - 1)};
+        auto& vi = ins[k];
+        auto& vo = outs[k];
+        if (k == 13) {
+          vi.resize(n);
+          vo.resize(n);
+          for (int64_t o = 0; o < n; ++o) vi[o] = vo[o] = o;
+          continue;
+        }
+        vi.reserve(n / 2);
+        vo.reserve(n / 2);
+        int64_t j = 0;
+        for (int64_t o = 0; o < n; ++o) {
+          const int32_t* s = c + 4 * o;
+          const int32_t x = s[1] + d[0], y = s[2] + d[1], z = s[3] + d[2];
+          if (x < 0 || y < 0 || z < 0 || x > kMaxCoord || y > kMaxCoord || z > kMaxCoord) continue;
+          const uint64_t target = SiteHash::Pack(s[0], x, y, z);
+          while (j < n && keys[j] < target) ++j;
+          if (j < n && keys[j] == target) {
+            vi.push_back(j);
+            vo.push_back(o);
+          }
+        }
+      }
+    });
+    lv.subm3 = Assemble(ins, outs, n, n);
+    lv.subm3->identity_offset = 13;
+    lv.subm3->mirror_symmetric = true;
+    lv.subm3->out_sorted = true;
+    return *lv.subm3;
+  }
+  const SiteHash& hash = *lv.hash;
   at::parallel_for(0, 27, 1, [&](int64_t kb, int64_t ke) {
     for (int64_t k = kb; k < ke; ++k) {
       const int64_t dx = k / 9 - 1, dy = (k / 3) % 3 - 1, dz = k % 3 - 1;
@@ -230,7 +282,7 @@ const Rulebook& SparseContext::Down(int64_t stride) {
                           ShapeString(fine.shape) + " (stride " + std::to_string(stride) +
                           ") with k2 s2: an axis would become empty");
   }
-  // Coarse sites in order of first occurrence.
+  // Coarse sites (first in order of first occurrence, renumbered sorted below).
   std::vector<int32_t> ccoords;
   ccoords.reserve(static_cast<size_t>(n));
   std::vector<int64_t> fine_to_coarse(n, -1);
@@ -257,19 +309,36 @@ const Rulebook& SparseContext::Down(int64_t stride) {
     }
   }
   const int64_t m = static_cast<int64_t>(ccoords.size() / 4);
+  // Number the coarse sites in (b, x, y, z) order (locality of the kernels, and the SubM3
+  // rulebook of the coarse level becomes a merge, see Subm3).
+  Level coarse;
+  coarse.sorted = true;
+  coarse.keys.resize(static_cast<size_t>(m));
+  std::vector<std::pair<uint64_t, int64_t>> order(static_cast<size_t>(m));
+  for (int64_t j = 0; j < m; ++j) {
+    const int32_t* s = ccoords.data() + 4 * j;
+    order[j] = {SiteHash::Pack(s[0], s[1], s[2], s[3]), j};
+  }
+  std::sort(order.begin(), order.end());
+  std::vector<int64_t> rank(static_cast<size_t>(m));
+  std::vector<int32_t> sorted_coords(static_cast<size_t>(4 * m));
+  for (int64_t r = 0; r < m; ++r) {
+    rank[order[r].second] = r;
+    coarse.keys[r] = order[r].first;
+    std::copy(ccoords.begin() + 4 * order[r].second, ccoords.begin() + 4 * order[r].second + 4,
+              sorted_coords.begin() + 4 * r);
+  }
   std::vector<std::vector<int64_t>> ins(8), outs(8);
   for (int64_t i = 0; i < n; ++i) {
     if (fine_to_coarse[i] < 0) continue;
     const int32_t* s = c + 4 * i;
     const int64_t k = 4 * (s[1] & 1) + 2 * (s[2] & 1) + (s[3] & 1);
     ins[k].push_back(i);
-    outs[k].push_back(fine_to_coarse[i]);
+    outs[k].push_back(rank[fine_to_coarse[i]]);
   }
   fine.down = Assemble(ins, outs, n, m);
-  Level coarse;
-  coarse.coords = at::from_blob(ccoords.data(), {m, 4}, at::kInt).clone();
+  coarse.coords = at::from_blob(sorted_coords.data(), {m, 4}, at::kInt).clone();
   coarse.shape = cshape;
-  coarse.hash = std::make_shared<SiteHash>(coarse.coords);
   levels_[2 * stride] = std::move(coarse);
   return *fine.down;
 }

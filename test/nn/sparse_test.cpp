@@ -410,6 +410,49 @@ TEST(SparseContext, BuildKernelMapsEqualsLazyBuild) {
   EXPECT_THROW(eager.BuildKernelMaps(6), InvalidArgument);
 }
 
+// Sites given in (b, x, y, z) order get their SubM3 rulebook by merging sorted key lists; sites
+// in any other order by hash probes. Both must give the same pairs (compared as coordinates), and
+// every coarse level is numbered in sorted order whatever the order of the fine sites.
+TEST(SparseContext, SortedSitesMergeRulebookEqualsHashRulebook) {
+  const Shape3 shape{13, 11, 9};
+  // Sites touching the lower and upper borders (neighbour keys leaving the grid) included.
+  const at::Tensor shuffled = RandomSites(2, shape, 600, 12);
+  const at::Tensor key = LinearIndex(shuffled, shape);
+  const at::Tensor sorted = shuffled.index_select(0, std::get<1>(key.sort()));
+  SparseContext hashed(shuffled, shape, 2), merged(sorted, shape, 2);
+  ASSERT_FALSE(hashed.level(1).sorted);
+  ASSERT_TRUE(merged.level(1).sorted);
+  auto pair_set = [](SparseContext& ctx, int64_t stride) {
+    const Rulebook& rb = ctx.Subm3(stride);
+    const at::Tensor c = ctx.level(stride).coords;
+    std::set<std::tuple<int64_t, int, int, int, int, int, int, int>> pairs;
+    auto in = rb.in_idx.accessor<int64_t, 1>();
+    auto out = rb.out_idx.accessor<int64_t, 1>();
+    auto ca = c.accessor<int, 2>();
+    for (int64_t k = 0; k < 27; ++k) {
+      for (int64_t p = rb.offsets[k]; p < rb.offsets[k + 1]; ++p) {
+        pairs.emplace(k, ca[in[p]][0], ca[in[p]][1], ca[in[p]][2], ca[in[p]][3], ca[out[p]][1],
+                      ca[out[p]][2], ca[out[p]][3]);
+        if (p > rb.offsets[k]) EXPECT_GT(out[p], out[p - 1]);  // ascending output rows
+      }
+    }
+    EXPECT_TRUE(rb.out_sorted && rb.mirror_symmetric);
+    return pairs;
+  };
+  const auto a = pair_set(hashed, 1), b = pair_set(merged, 1);
+  EXPECT_GT(a.size(), 1200u);
+  EXPECT_EQ(a, b);
+  // Coarse levels: sorted in both contexts, hence identical, with the same rulebooks.
+  hashed.Down(1);
+  merged.Down(1);
+  ASSERT_TRUE(hashed.level(2).sorted && merged.level(2).sorted);
+  EXPECT_TRUE(at::equal(hashed.level(2).coords, merged.level(2).coords));
+  const at::Tensor ck = LinearIndex(merged.level(2).coords, hashed.level(2).shape);
+  EXPECT_TRUE(
+      at::all(ck.narrow(0, 1, ck.size(0) - 1) > ck.narrow(0, 0, ck.size(0) - 1)).item<bool>());
+  EXPECT_EQ(pair_set(hashed, 2), pair_set(merged, 2));
+}
+
 TEST(SparseConv, EmptyTensor) {
   at::Tensor coords = at::zeros({0, 4}, at::kInt);
   SparseTensor s(coords, at::zeros({0, 3}), {4, 4, 4}, 1);

@@ -75,6 +75,11 @@ class SparseContext {
   struct Level {
     at::Tensor coords;  // [N, 4] int32 CPU (b, x, y, z) in this level's grid
     std::array<int64_t, 3> shape{0, 0, 0};
+    // Sites in strictly ascending (b, x, y, z) order (voxelised inputs, every coarse level):
+    // their packed keys, and the SubM3 rulebook is a merge of sorted lists. Otherwise (sites in
+    // any order) `keys` is empty and `hash` is set.
+    bool sorted = false;
+    std::vector<uint64_t> keys;
     std::shared_ptr<SiteHash> hash;
     std::shared_ptr<Rulebook> subm3;
     std::shared_ptr<Rulebook> down;  // this level (fine) -> level 2*stride (coarse)
