@@ -433,7 +433,9 @@ TEST(SparseContext, SortedSitesMergeRulebookEqualsHashRulebook) {
       for (int64_t p = rb.offsets[k]; p < rb.offsets[k + 1]; ++p) {
         pairs.emplace(k, ca[in[p]][0], ca[in[p]][1], ca[in[p]][2], ca[in[p]][3], ca[out[p]][1],
                       ca[out[p]][2], ca[out[p]][3]);
-        if (p > rb.offsets[k]) EXPECT_GT(out[p], out[p - 1]);  // ascending output rows
+        if (p > rb.offsets[k]) {
+          EXPECT_GT(out[p], out[p - 1]);  // ascending output rows
+        }
       }
     }
     EXPECT_TRUE(rb.out_sorted && rb.mirror_symmetric);
