@@ -990,42 +990,19 @@ VoxelMap BuildVoxelMap(const at::Tensor& point_coords) {
   VoxelMap map;
   map.point_to_voxel = at::empty({n}, at::kLong);
   int64_t* p2v = map.point_to_voxel.data_ptr<int64_t>();
-  uint64_t cap = 16;
-  while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
-  std::vector<uint64_t> keys(cap, 0);
-  std::vector<int64_t> vals(cap, -1);
-  // (packed key, id in order of first occurrence) of each voxel.
-  std::vector<std::pair<uint64_t, int64_t>> uniq;
-  int64_t m = 0;
+  // Voxels numbered in (b, x, y, z) order (the packed key's order): neighbouring sites get nearby
+  // rows, so the sparse kernels' row gathers / scatters stream through memory instead of jumping
+  // (the fused SubM3 forward on a 2 cm room: 1.3x faster than first-occurrence order).
+  std::vector<uint64_t> keys(static_cast<size_t>(n));
   for (int64_t i = 0; i < n; ++i) {
     const int32_t* s = cp + 4 * i;
-    const uint64_t key = SiteHash::Pack(s[0], s[1], s[2], s[3]) + 1;
-    uint64_t h = (key * 0x9E3779B97F4A7C15ULL) >> 20;
-    h &= cap - 1;
-    while (keys[h] != 0 && keys[h] != key) h = (h + 1) & (cap - 1);
-    if (keys[h] == 0) {
-      keys[h] = key;
-      vals[h] = m++;
-      uniq.emplace_back(key - 1, vals[h]);
-    }
-    p2v[i] = vals[h];
+    keys[i] = SiteHash::Pack(s[0], s[1], s[2], s[3]);
   }
-  // Number the voxels in (b, x, y, z) order (the packed key's order): neighbouring sites get
-  // nearby rows, so the sparse kernels' row gathers / scatters stream through memory instead of
-  // jumping (the fused SubM3 forward on a 2 cm room: 1.3x faster than first-occurrence order).
-  std::sort(uniq.begin(), uniq.end());
-  std::vector<int64_t> rank(static_cast<size_t>(m));
-  std::vector<int32_t> vc(static_cast<size_t>(4 * m));
-  for (int64_t r = 0; r < m; ++r) {
-    const auto& [key, first] = uniq[static_cast<size_t>(r)];
-    rank[static_cast<size_t>(first)] = r;
-    vc[4 * r] = static_cast<int32_t>(key >> 48);
-    vc[4 * r + 1] = static_cast<int32_t>((key >> 32) & 0xFFFF);
-    vc[4 * r + 2] = static_cast<int32_t>((key >> 16) & 0xFFFF);
-    vc[4 * r + 3] = static_cast<int32_t>(key & 0xFFFF);
-  }
-  for (int64_t i = 0; i < n; ++i) p2v[i] = rank[static_cast<size_t>(p2v[i])];
-  map.voxel_coords = at::from_blob(vc.data(), {m, 4}, at::kInt).clone();
+  std::vector<int64_t> voxel_of_point;
+  const std::vector<uint64_t> voxels = SortedUniqueKeys(keys, &voxel_of_point);
+  const int64_t m = static_cast<int64_t>(voxels.size());
+  std::copy(voxel_of_point.begin(), voxel_of_point.end(), p2v);
+  map.voxel_coords = CoordsOfKeys(voxels);
   map.voxel_offsets = at::zeros({m + 1}, at::kLong);
   int64_t* off = map.voxel_offsets.data_ptr<int64_t>();
   for (int64_t i = 0; i < n; ++i) ++off[p2v[i] + 1];

@@ -104,6 +104,52 @@ std::pair<at::Tensor, at::Tensor> Rulebook::OnDevice(const at::Device& device) c
   return pair;
 }
 
+std::vector<uint64_t> SortedUniqueKeys(const std::vector<uint64_t>& keys,
+                                       std::vector<int64_t>* index) {
+  const int64_t n = static_cast<int64_t>(keys.size());
+  index->resize(keys.size());
+  // Distinct keys through an open-addressing table (ids in order of first occurrence), then
+  // sorted: sorting the distinct keys only is cheaper than sorting every input row.
+  uint64_t cap = 16;
+  while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
+  std::vector<uint64_t> table(cap, 0);  // key + 1 (0 = empty)
+  std::vector<int64_t> ids(cap, -1);
+  std::vector<std::pair<uint64_t, int64_t>> uniq;  // (key, id of first occurrence)
+  for (int64_t i = 0; i < n; ++i) {
+    const uint64_t key = keys[i] + 1;
+    uint64_t h = Mix(key) & (cap - 1);
+    while (table[h] != 0 && table[h] != key) h = (h + 1) & (cap - 1);
+    if (table[h] == 0) {
+      table[h] = key;
+      ids[h] = static_cast<int64_t>(uniq.size());
+      uniq.emplace_back(keys[i], ids[h]);
+    }
+    (*index)[i] = ids[h];
+  }
+  std::sort(uniq.begin(), uniq.end());
+  std::vector<int64_t> rank(uniq.size());
+  std::vector<uint64_t> sorted(uniq.size());
+  for (size_t r = 0; r < uniq.size(); ++r) {
+    sorted[r] = uniq[r].first;
+    rank[uniq[r].second] = static_cast<int64_t>(r);
+  }
+  for (int64_t& id : *index) id = rank[id];
+  return sorted;
+}
+
+at::Tensor CoordsOfKeys(const std::vector<uint64_t>& keys) {
+  const int64_t m = static_cast<int64_t>(keys.size());
+  at::Tensor c = at::empty({m, 4}, at::kInt);
+  int32_t* cp = c.data_ptr<int32_t>();
+  for (int64_t r = 0; r < m; ++r) {
+    cp[4 * r] = static_cast<int32_t>(keys[r] >> 48);
+    cp[4 * r + 1] = static_cast<int32_t>((keys[r] >> 32) & 0xFFFF);
+    cp[4 * r + 2] = static_cast<int32_t>((keys[r] >> 16) & 0xFFFF);
+    cp[4 * r + 3] = static_cast<int32_t>(keys[r] & 0xFFFF);
+  }
+  return c;
+}
+
 at::Tensor Rulebook::OutBlocks() const {
   if (!out_sorted) return at::Tensor();
   std::lock_guard<std::mutex> lock(mutex_);
@@ -258,62 +304,36 @@ const Rulebook& SparseContext::Down(int64_t stride) {
                           ShapeString(fine.shape) + " (stride " + std::to_string(stride) +
                           ") with k2 s2: an axis would become empty");
   }
-  // Coarse sites (first in order of first occurrence, renumbered sorted below).
-  std::vector<int32_t> ccoords;
-  ccoords.reserve(static_cast<size_t>(n));
-  std::vector<int64_t> fine_to_coarse(n, -1);
-  {
-    uint64_t cap = 16;
-    while (cap < static_cast<uint64_t>(2 * n + 1)) cap <<= 1;
-    std::vector<uint64_t> keys(cap, 0);
-    std::vector<int64_t> vals(cap, -1);
-    int64_t m = 0;
-    for (int64_t i = 0; i < n; ++i) {
-      const int32_t* s = c + 4 * i;
-      const int64_t cx = s[1] / 2, cy = s[2] / 2, cz = s[3] / 2;
-      if (cx >= cshape[0] || cy >= cshape[1] || cz >= cshape[2]) continue;  // dropped border
-      const uint64_t key = SiteHash::Pack(s[0], cx, cy, cz) + 1;
-      uint64_t h = Mix(key) & (cap - 1);
-      while (keys[h] != 0 && keys[h] != key) h = (h + 1) & (cap - 1);
-      if (keys[h] == 0) {
-        keys[h] = key;
-        vals[h] = m++;
-        ccoords.insert(ccoords.end(), {s[0], static_cast<int32_t>(cx), static_cast<int32_t>(cy),
-                                       static_cast<int32_t>(cz)});
-      }
-      fine_to_coarse[i] = vals[h];
-    }
+  // Coarse sites numbered in (b, x, y, z) order (locality of the kernels, and the SubM3 rulebook
+  // of the coarse level becomes a merge, see Subm3). Fine sites of a dropped border have none.
+  std::vector<int64_t> kept;
+  std::vector<uint64_t> ckeys;
+  kept.reserve(static_cast<size_t>(n));
+  ckeys.reserve(static_cast<size_t>(n));
+  for (int64_t i = 0; i < n; ++i) {
+    const int32_t* s = c + 4 * i;
+    const int64_t cx = s[1] / 2, cy = s[2] / 2, cz = s[3] / 2;
+    if (cx >= cshape[0] || cy >= cshape[1] || cz >= cshape[2]) continue;  // dropped border
+    kept.push_back(i);
+    ckeys.push_back(SiteHash::Pack(s[0], cx, cy, cz));
   }
-  const int64_t m = static_cast<int64_t>(ccoords.size() / 4);
-  // Number the coarse sites in (b, x, y, z) order (locality of the kernels, and the SubM3
-  // rulebook of the coarse level becomes a merge, see Subm3).
+  std::vector<int64_t> coarse_of_kept;
   Level coarse;
   coarse.sorted = true;
-  coarse.keys.resize(static_cast<size_t>(m));
-  std::vector<std::pair<uint64_t, int64_t>> order(static_cast<size_t>(m));
-  for (int64_t j = 0; j < m; ++j) {
-    const int32_t* s = ccoords.data() + 4 * j;
-    order[j] = {SiteHash::Pack(s[0], s[1], s[2], s[3]), j};
-  }
-  std::sort(order.begin(), order.end());
-  std::vector<int64_t> rank(static_cast<size_t>(m));
-  std::vector<int32_t> sorted_coords(static_cast<size_t>(4 * m));
-  for (int64_t r = 0; r < m; ++r) {
-    rank[order[r].second] = r;
-    coarse.keys[r] = order[r].first;
-    std::copy(ccoords.begin() + 4 * order[r].second, ccoords.begin() + 4 * order[r].second + 4,
-              sorted_coords.begin() + 4 * r);
-  }
+  coarse.keys = SortedUniqueKeys(ckeys, &coarse_of_kept);
+  const int64_t m = static_cast<int64_t>(coarse.keys.size());
+  std::vector<int64_t> fine_to_coarse(n, -1);
+  for (size_t j = 0; j < kept.size(); ++j) fine_to_coarse[kept[j]] = coarse_of_kept[j];
   std::vector<std::vector<int64_t>> ins(8), outs(8);
   for (int64_t i = 0; i < n; ++i) {
     if (fine_to_coarse[i] < 0) continue;
     const int32_t* s = c + 4 * i;
     const int64_t k = 4 * (s[1] & 1) + 2 * (s[2] & 1) + (s[3] & 1);
     ins[k].push_back(i);
-    outs[k].push_back(rank[fine_to_coarse[i]]);
+    outs[k].push_back(fine_to_coarse[i]);
   }
   fine.down = Assemble(ins, outs, n, m);
-  coarse.coords = at::from_blob(sorted_coords.data(), {m, 4}, at::kInt).clone();
+  coarse.coords = CoordsOfKeys(coarse.keys);
   coarse.shape = cshape;
   levels_[2 * stride] = std::move(coarse);
   return *fine.down;

@@ -37,6 +37,14 @@ class SiteHash {
   uint64_t mask_ = 0;
 };
 
+// The distinct values of `keys` (packed (b, x, y, z), SiteHash::Pack) in ascending order, and in
+// `index` (resized to keys.size()) the position of every key among them: how voxelising and
+// down-sampling number their sites ((b, x, y, z) order, whatever the input order).
+std::vector<uint64_t> SortedUniqueKeys(const std::vector<uint64_t>& keys,
+                                       std::vector<int64_t>* index);
+// [M, 4] int32 CPU (b, x, y, z) of packed keys.
+at::Tensor CoordsOfKeys(const std::vector<uint64_t>& keys);
+
 // Input/output row pairs of one convolution, grouped by kernel offset: pairs
 // offsets[k] .. offsets[k+1]-1 use weight W[k]. Within one offset every input and every
 // output row occurs at most once (so scatter-adds of one offset never collide).
