@@ -14,14 +14,14 @@
 
 #include "dimr/geometry/error.h"
 
-namespace dimr::ros {
+namespace dimr::ros1 {
 namespace {
 
 using PointVec = std::vector<Eigen::Vector3f>;
 using ColorVec = std::vector<geometry::Color>;
 
 sensor_msgs::PointCloud2 MakeCloud(const PointVec& pts, const ColorVec& colors,
-                                   const std::string& frame, const ::ros::Time& stamp) {
+                                   const std::string& frame, const ros::Time& stamp) {
   sensor_msgs::PointCloud2 msg;
   msg.header.frame_id = frame;
   msg.header.stamp = stamp;
@@ -69,7 +69,7 @@ BagStats WriteScanBag(const std::string& path, const data::ScanResult& scan,
   opt.Validate();
   if (scan.frames.empty())
     throw InvalidArgument("WriteScanBag: the scan has no frames (set ScannerConfig::keep_frames)");
-  if (!::ros::Time::isValid()) ::ros::Time::init();
+  if (!ros::Time::isValid()) ros::Time::init();
   rosbag::Bag bag;
   try {
     bag.open(path, rosbag::bagmode::Write);
@@ -84,7 +84,7 @@ BagStats WriteScanBag(const std::string& path, const data::ScanResult& scan,
   try {
     for (std::size_t f = 0; f < scan.frames.size(); ++f) {
       const data::ScanFrame& frame = scan.frames[f];
-      const ::ros::Time stamp(opt.start_time + static_cast<double>(f) / opt.frame_rate_hz);
+      const ros::Time stamp(opt.start_time + static_cast<double>(f) / opt.frame_rate_hz);
       tf2_msgs::TFMessage tf;
       geometry_msgs::TransformStamped t;
       t.header.stamp = stamp;
@@ -127,4 +127,4 @@ BagStats WriteScanBag(const std::string& path, const data::ScanResult& scan,
   return stats;
 }
 
-}  // namespace dimr::ros
+}  // namespace dimr::ros1

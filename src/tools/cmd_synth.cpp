@@ -187,9 +187,9 @@ RunResult RunSynth(const SynthOptions& o) {
         dimr::data::WriteScanNetScene((out / "scans").string(), g.scene);
 #ifdef DIMR_HAVE_ROS
         if (o.bags) {
-          dimr::ros::BagWriterOptions bo;
+          dimr::ros1::BagWriterOptions bo;
           bo.map_cloud_every = o.map_cloud_every;
-          dimr::ros::WriteScanBag((out / "bags" / (name + ".bag")).string(), g.scan, bo);
+          dimr::ros1::WriteScanBag((out / "bags" / (name + ".bag")).string(), g.scan, bo);
         }
 #endif
         if (o.render) {

@@ -16,7 +16,7 @@
 #include "dimr/data/scanner.h"
 #include "dimr/geometry/error.h"
 
-namespace dimr::ros {
+namespace dimr::ros1 {
 namespace {
 
 namespace fs = std::filesystem;
@@ -113,4 +113,4 @@ TEST(BagWriterTest, Errors) {
 }
 
 }  // namespace
-}  // namespace dimr::ros
+}  // namespace dimr::ros1

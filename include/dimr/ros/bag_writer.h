@@ -12,7 +12,8 @@
 
 #include "dimr/data/scanner.h"
 
-namespace dimr::ros {
+// Namespace `ros1`, not `ros`: a dimr::ros would shadow ::ros inside dimr (ros::Time, ros::NodeHandle).
+namespace dimr::ros1 {
 
 struct BagWriterOptions {
   std::string map_frame = "map";
@@ -40,4 +41,4 @@ struct BagStats {
 BagStats WriteScanBag(const std::string& path, const data::ScanResult& scan,
                       const BagWriterOptions& options = {});
 
-}  // namespace dimr::ros
+}  // namespace dimr::ros1
