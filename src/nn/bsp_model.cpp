@@ -21,6 +21,7 @@
 #include <random>
 #include <sstream>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/model_archive.h"
 
@@ -41,68 +42,45 @@ BspConfig BspConfig::Reference() {
   return c;
 }
 
-void BspConfig::Validate() const {
-  auto fail = [](const std::string& key, const std::string& why) {
-    throw InvalidArgument("BspConfig." + key + ": " + why);
-  };
-  if (resolution < 8 || resolution > 256 || (resolution & (resolution - 1)) != 0) {
-    fail("resolution", "must be a power of two in [8, 256], got " + std::to_string(resolution));
-  }
-  if (latent_dim < 1 || latent_dim > 4096) fail("latent_dim", "must be in [1, 4096]");
-  if (encoder_width < 1 || encoder_width > 1024) fail("encoder_width", "must be in [1, 1024]");
-  if (num_planes < 4 || num_planes > 65536) fail("num_planes", "must be in [4, 65536]");
-  if (num_convexes < 1 || num_convexes > 4096) fail("num_convexes", "must be in [1, 4096]");
-  if (num_classes < 1 || num_classes > 64) fail("num_classes", "must be in [1, 64]");
-  if (decoder_widths.empty()) fail("decoder_widths", "needs at least one hidden layer");
-  for (int w : decoder_widths) {
-    if (w < 1 || w > 65536) fail("decoder_widths", "widths must be in [1, 65536]");
-  }
+namespace {
+
+// The text form of a BspConfig (model archives, --config): one declaration per key.
+const config::Fields<BspConfig>& BspConfigFields() {
+  using C = BspConfig;
+  static const config::Fields<C> fields =
+      config::Fields<C>("BspConfig")
+          .Number(
+              "resolution", [](C& c) -> int& { return c.resolution; }, "voxels",
+              "encoder input grid (a power of two)", 8, 256)
+          .Check([](const C& c) -> std::string {
+            return (c.resolution & (c.resolution - 1)) != 0 ? "must be a power of two" : "";
+          })
+          .Number(
+              "latent_dim", [](C& c) -> int& { return c.latent_dim; }, "", "latent size", 1, 4096)
+          .Number(
+              "encoder_width", [](C& c) -> int& { return c.encoder_width; }, "channels",
+              "first encoder conv", 1, 1024)
+          .Number(
+              "num_planes", [](C& c) -> int& { return c.num_planes; }, "", "planes P", 4, 65536)
+          .Number(
+              "num_convexes", [](C& c) -> int& { return c.num_convexes; }, "", "convexes C", 1,
+              4096)
+          .Number(
+              "num_classes", [](C& c) -> int& { return c.num_classes; }, "", "classes", 1, 64)
+          .NumberList(
+              "decoder_widths", [](C& c) -> std::vector<int>& { return c.decoder_widths; },
+              "channels", "decoder hidden layers", 1, 65536);
+  return fields;
 }
 
-std::string BspConfig::ToString() const {
-  std::ostringstream s;
-  s << "resolution=" << resolution << " latent_dim=" << latent_dim
-    << " encoder_width=" << encoder_width << " num_planes=" << num_planes
-    << " num_convexes=" << num_convexes << " num_classes=" << num_classes << " decoder_widths=";
-  for (std::size_t i = 0; i < decoder_widths.size(); ++i) {
-    s << (i ? "," : "") << decoder_widths[i];
-  }
-  return s.str();
-}
+}  // namespace
+
+void BspConfig::Validate() const { BspConfigFields().Validate(*this); }
+
+std::string BspConfig::ToString() const { return BspConfigFields().Format(*this); }
 
 BspConfig BspConfig::FromString(const std::string& text) {
-  BspConfig c;
-  std::istringstream in(text);
-  std::string token;
-  while (in >> token) {
-    const auto eq = token.find('=');
-    if (eq == std::string::npos) throw InvalidArgument("BspConfig: bad token '" + token + "'");
-    const std::string key = token.substr(0, eq), value = token.substr(eq + 1);
-    try {
-      if (key == "resolution") {
-        c.resolution = std::stoi(value);
-      } else if (key == "latent_dim") {
-        c.latent_dim = std::stoi(value);
-      } else if (key == "encoder_width") {
-        c.encoder_width = std::stoi(value);
-      } else if (key == "num_planes") {
-        c.num_planes = std::stoi(value);
-      } else if (key == "num_convexes") {
-        c.num_convexes = std::stoi(value);
-      } else if (key == "num_classes") {
-        c.num_classes = std::stoi(value);
-      } else if (key == "decoder_widths") {
-        c.decoder_widths.clear();
-        std::istringstream ws(value);
-        std::string w;
-        while (std::getline(ws, w, ',')) c.decoder_widths.push_back(std::stoi(w));
-      } else {
-        throw InvalidArgument("BspConfig: unknown key '" + key + "'");
-      }
-    } catch (const std::logic_error&) {
-      throw InvalidArgument("BspConfig: bad value for '" + key + "': '" + value + "'");
-    }
-  }
+  const BspConfig c = BspConfigFields().Parse(text);
   c.Validate();
   return c;
 }

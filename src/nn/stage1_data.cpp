@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <exception>
 #include <fstream>
@@ -702,6 +703,67 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     batch.point_offsets.push_back(static_cast<std::int64_t>(base + m));
   }
   return batch;
+}
+
+// ---------------------------------------------------------------- inference input
+Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
+                                          const Stage1InputConfig& input) {
+  input.Validate();
+  const std::string who = "stage1 input: scene '" + scene.name + "'";
+  if (scene.size == 0 || scene.points == nullptr) throw InvalidArgument(who + " has no points");
+  if (input.use_rgb && scene.colors == nullptr) {
+    throw InvalidArgument(who + ": the model uses colour but the scene has none");
+  }
+  const std::size_t n = scene.size;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!Finite(scene.points[i])) {
+      throw InvalidArgument(who + " point " + std::to_string(i) + " is not finite");
+    }
+    if (input.use_rgb && !Finite(scene.colors[i])) {
+      throw InvalidArgument(who + " colour " + std::to_string(i) + " is not finite");
+    }
+  }
+  Stage1NetworkInput r;
+  r.frame = EstimateNetworkFrame(std::vector<Eigen::Vector3f>(scene.points, scene.points + n));
+  const int C = input.feature_channels();
+  r.feature_channels = C;
+  r.features.resize(n * C);
+  r.voxel.resize(n * 4);
+  // The same float arithmetic as MakeStage1Batch: p - origin, then times the scale.
+  const float scale = static_cast<float>(input.scale);
+  Eigen::Vector3f qmin = Eigen::Vector3f::Constant(INFINITY);
+  Eigen::Vector3f qmax = Eigen::Vector3f::Constant(-INFINITY);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f p = scene.points[i] - r.frame.origin;
+    const Eigen::Vector3f q = p * scale;
+    qmin = qmin.cwiseMin(q);
+    qmax = qmax.cwiseMax(q);
+    for (int c = 0; c < 3; ++c) r.features[C * i + c] = p[c];
+  }
+  for (int c = 0; c < 3; ++c) {
+    const double span = std::floor(static_cast<double>(qmax[c]) - qmin[c]) + 1;
+    if (!(span <= 65536)) {
+      char buf[160];
+      std::snprintf(buf, sizeof(buf),
+                    " spans %.1f m along %c = %.0f voxels at scale %g (at most 65536): points "
+                    "must be in metres (is the cloud in millimetres?)",
+                    (qmax[c] - qmin[c]) / scale, "xyz"[c], span, input.scale);
+      throw InvalidArgument(who + buf);
+    }
+    r.extent[c] = static_cast<std::int64_t>(span);
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3f q = (scene.points[i] - r.frame.origin) * scale;
+    r.voxel[4 * i] = 0;
+    for (int c = 0; c < 3; ++c) {
+      r.voxel[4 * i + 1 + c] =
+          static_cast<std::int32_t>(std::floor(static_cast<double>(q[c]) - qmin[c]));
+    }
+    if (input.use_rgb) {
+      for (int c = 0; c < 3; ++c) r.features[C * i + 3 + c] = scene.colors[i][c] - 0.5f;
+    }
+  }
+  return r;
 }
 
 // ---------------------------------------------------------------- loader

@@ -23,6 +23,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/model_archive.h"
 #include "dimr/nn/sparse_ops.h"
@@ -42,75 +43,44 @@ Stage1Config Stage1Config::Reference() {
   return c;
 }
 
+namespace {
+
+// The text form of a Stage1Config (model archives, --config): one declaration per key.
+const config::Fields<Stage1Config>& Stage1ConfigFields() {
+  static const config::Fields<Stage1Config> fields =
+      config::Fields<Stage1Config>("stage1 config")
+          .Number(
+              "scale", [](Stage1Config& c) -> double& { return c.input.scale; }, "1/m",
+              "voxels per metre (20 = 5 cm)", 1e-6, 1000.0)
+          .Flag(
+              "rgb", [](Stage1Config& c) -> bool& { return c.input.use_rgb; },
+              "feed colours besides xyz")
+          .NumberList(
+              "widths", [](Stage1Config& c) -> std::vector<std::int64_t>& { return c.widths; },
+              "channels", "U-Net level widths", std::int64_t{1}, std::int64_t{4096})
+          .Check([](const Stage1Config& c) -> std::string {
+            return c.widths.size() > 12 ? "more than 12 levels" : "";
+          })
+          .Number(
+              "reps", [](Stage1Config& c) -> int& { return c.reps; }, "",
+              "residual blocks per level and side", 1, 8)
+          .Number(
+              "classes", [](Stage1Config& c) -> int& { return c.num_classes; }, "",
+              "semantic classes", 2, 1000);
+  return fields;
+}
+
+}  // namespace
+
 void Stage1Config::Validate() const {
   input.Validate();
-  if (widths.empty()) throw InvalidArgument("stage1 config: 'widths' is empty");
-  for (std::size_t i = 0; i < widths.size(); ++i) {
-    if (widths[i] < 1 || widths[i] > 4096) {
-      throw InvalidArgument("stage1 config: widths[" + std::to_string(i) +
-                            "] = " + std::to_string(widths[i]) + " (1..4096 required)");
-    }
-  }
-  if (widths.size() > 12) throw InvalidArgument("stage1 config: more than 12 'widths' levels");
-  if (reps < 1 || reps > 8) {
-    throw InvalidArgument("stage1 config: 'reps' = " + std::to_string(reps) + " (1..8 required)");
-  }
-  if (num_classes < 2 || num_classes > 1000) {
-    throw InvalidArgument("stage1 config: 'classes' = " + std::to_string(num_classes));
-  }
+  Stage1ConfigFields().Validate(*this);
 }
 
-std::string Stage1Config::ToString() const {
-  std::ostringstream s;
-  s << "scale=" << input.scale << " rgb=" << (input.use_rgb ? 1 : 0) << " widths=";
-  for (std::size_t i = 0; i < widths.size(); ++i) s << (i ? "," : "") << widths[i];
-  s << " reps=" << reps << " classes=" << num_classes;
-  return s.str();
-}
+std::string Stage1Config::ToString() const { return Stage1ConfigFields().Format(*this); }
 
 Stage1Config Stage1Config::FromString(const std::string& text) {
-  Stage1Config c;
-  std::istringstream in(text);
-  std::string item;
-  bool have_widths = false;
-  while (in >> item) {
-    const auto eq = item.find('=');
-    if (eq == std::string::npos) {
-      throw InvalidArgument("stage1 config: '" + item + "' is not key=value");
-    }
-    const std::string key = item.substr(0, eq), value = item.substr(eq + 1);
-    try {
-      std::size_t used = 0;
-      if (key == "scale") {
-        c.input.scale = std::stod(value, &used);
-      } else if (key == "rgb") {
-        c.input.use_rgb = std::stoi(value, &used) != 0;
-      } else if (key == "reps") {
-        c.reps = std::stoi(value, &used);
-      } else if (key == "classes") {
-        c.num_classes = std::stoi(value, &used);
-      } else if (key == "widths") {
-        c.widths.clear();
-        std::istringstream ws(value);
-        std::string w;
-        while (std::getline(ws, w, ',')) {
-          std::size_t u = 0;
-          c.widths.push_back(std::stoll(w, &u));
-          if (u != w.size()) throw std::invalid_argument(w);
-        }
-        used = value.size();
-        have_widths = true;
-      } else {
-        throw InvalidArgument("stage1 config: unknown key '" + key + "'");
-      }
-      if (used != value.size()) throw std::invalid_argument(value);
-    } catch (const std::logic_error&) {
-      throw InvalidArgument("stage1 config: bad value '" + value + "' for '" + key + "'");
-    }
-  }
-  if (!have_widths && text.find("widths") != std::string::npos) {
-    throw InvalidArgument("stage1 config: bad 'widths'");
-  }
+  const Stage1Config c = Stage1ConfigFields().Parse(text);
   c.Validate();
   return c;
 }
@@ -318,7 +288,11 @@ struct Stage1Model::Impl {
 
   HeadOutput Forward(const BatchTensors& t, Stage1Timing* timing) {
     const auto t0 = std::chrono::steady_clock::now();
-    Voxelized v = Voxelize(t.voxel, t.features, t.batch_size);
+    // Every U-Net level halves the grid (k2 s2): at least 2^(levels - 1) voxels per axis, or a
+    // flat room (1.37 m high at 5 cm: 28 voxels for 6 levels), a plane or one point could not
+    // be down-sampled to the last level. Padding adds no sites, so wider grids are unchanged.
+    const int64_t min_extent = int64_t{1} << (config.widths.size() - 1);
+    Voxelized v = Voxelize(t.voxel, t.features, t.batch_size, {min_extent, min_extent, min_extent});
     const auto t1 = std::chrono::steady_clock::now();
     v.tensor.context()->BuildKernelMaps(static_cast<int>(config.widths.size()));
     const auto t1b = std::chrono::steady_clock::now();
@@ -333,6 +307,18 @@ struct Stage1Model::Impl {
       timing->heads_ms = Ms(t2, t3);
     }
     return h;
+  }
+
+  // One network pass on a scene view (eval mode, no gradient: the caller's guard).
+  HeadOutput ForwardScene(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
+    const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
+    *frame = in.frame;
+    const int64_t n = static_cast<int64_t>(scene.size);
+    BatchTensors t;
+    t.batch_size = 1;
+    t.voxel = FromVector(in.voxel, torch::kInt32, {n, 4});
+    t.features = FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device);
+    return Forward(t, timing);
   }
 };
 
@@ -416,134 +402,153 @@ Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
 
 Stage1Output Stage1Model::Predict(const Stage1Sample& sample, bool with_features,
                                   Stage1Timing* timing) const {
-  if (sample.points.empty()) {
-    throw InvalidArgument("stage1 predict: scene '" + sample.name + "' has no points");
+  if (impl_->config.input.use_rgb && sample.colors.size() != sample.points.size()) {
+    throw InvalidArgument("stage1 predict: the model uses colour but scene '" + sample.name +
+                          "' has " + std::to_string(sample.colors.size()) + " colours for " +
+                          std::to_string(sample.points.size()) + " points");
   }
-  for (std::size_t i = 0; i < sample.points.size(); ++i) {
-    if (!sample.points[i].allFinite()) {
-      throw InvalidArgument("stage1 predict: scene '" + sample.name + "' point " +
-                            std::to_string(i) + " is not finite");
-    }
-  }
-  // Inference needs only the points; give the batch builder neutral labels.
-  Stage1Sample s;
-  s.name = sample.name;
-  s.points = sample.points;
-  if (impl_->config.input.use_rgb) {
-    if (sample.colors.size() != sample.points.size()) {
-      throw InvalidArgument("stage1 predict: the model uses colour but scene '" + sample.name +
-                            "' has " + std::to_string(sample.colors.size()) + " colours for " +
-                            std::to_string(sample.points.size()) + " points");
-    }
-    s.colors = sample.colors;
-  }
-  s.semantic.assign(s.points.size(), kStage1Ignore);
-  s.instance.assign(s.points.size(), -1);
-  const Stage1Batch batch = MakeStage1Batch({&s}, impl_->config.input, nullptr, 0);
-
-  torch::NoGradGuard no_grad;
-  impl_->net->eval();
-  const BatchTensors t = ToTensors(batch, impl_->device);
-  Stage1Timing local;
-  HeadOutput h = impl_->Forward(t, &local);
-  const auto t0 = std::chrono::steady_clock::now();
-  Stage1Output out;
-  out.frame = batch.frames.at(0);
-  const int64_t n = batch.num_points();
-  const int nc = impl_->config.num_classes;
-  torch::Tensor prob = torch::softmax(h.semantic, 1).to(torch::kCPU).contiguous();
-  torch::Tensor arg = prob.argmax(1).to(torch::kInt32).contiguous();
-  out.semantic_prob.assign(prob.data_ptr<float>(), prob.data_ptr<float>() + n * nc);
-  out.semantic.assign(arg.data_ptr<int32_t>(), arg.data_ptr<int32_t>() + n);
-  torch::Tensor off = h.offset.to(torch::kCPU).contiguous();
-  out.offsets.resize(n);
-  const float* po = off.data_ptr<float>();
-  for (int64_t i = 0; i < n; ++i)
-    out.offsets[i] = Eigen::Vector3f(po[3 * i], po[3 * i + 1], po[3 * i + 2]);
-  torch::Tensor hb =
-      torch::softmax(h.heading.slice(1, 0, kHeadingBins), 1).to(torch::kCPU).contiguous();
-  torch::Tensor hr =
-      h.heading.slice(1, kHeadingBins, 2 * kHeadingBins).to(torch::kCPU).contiguous();
-  out.heading_prob.assign(hb.data_ptr<float>(), hb.data_ptr<float>() + n * kHeadingBins);
-  out.heading_residual.assign(hr.data_ptr<float>(), hr.data_ptr<float>() + n * kHeadingBins);
-  if (with_features) {
-    torch::Tensor f = h.features.to(torch::kCPU).contiguous();
-    out.features.assign(f.data_ptr<float>(), f.data_ptr<float>() + f.numel());
-  }
-  local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
-  if (timing) *timing = local;
-  return out;
+  return Predict(ScenePoints(sample.points, &sample.colors, sample.name), with_features, timing);
 }
 
 Stage1Output Stage1Model::PredictAugmented(const Stage1Sample& sample, int rotations, bool mirror,
+                                           bool with_features, Stage1Timing* timing) const {
+  if (impl_->config.input.use_rgb && sample.colors.size() != sample.points.size()) {
+    throw InvalidArgument("stage1 predict: the model uses colour but scene '" + sample.name +
+                          "' has " + std::to_string(sample.colors.size()) + " colours for " +
+                          std::to_string(sample.points.size()) + " points");
+  }
+  return PredictAugmented(ScenePoints(sample.points, &sample.colors, sample.name), rotations,
+                          mirror, with_features, timing);
+}
+
+namespace {
+
+// The network's outputs of one pass on the CPU, contiguous: semantic softmax N x C, offsets
+// N x 3, heading bin softmax and residuals N x 12 each.
+struct PassTensors {
+  torch::Tensor prob, offset, heading_prob, heading_residual;
+};
+
+PassTensors ToPassTensors(const HeadOutput& h) {
+  PassTensors p;
+  p.prob = torch::softmax(h.semantic, 1).to(torch::kCPU).contiguous();
+  p.offset = h.offset.to(torch::kCPU).contiguous();
+  p.heading_prob =
+      torch::softmax(h.heading.slice(1, 0, kHeadingBins), 1).to(torch::kCPU).contiguous();
+  p.heading_residual =
+      h.heading.slice(1, kHeadingBins, 2 * kHeadingBins).to(torch::kCPU).contiguous();
+  return p;
+}
+
+}  // namespace
+
+Stage1Output Stage1Model::Predict(const ScenePoints& scene, bool with_features,
+                                  Stage1Timing* timing) const {
+  return PredictAugmented(scene, 1, false, with_features, timing);
+}
+
+Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotations, bool mirror,
                                            bool with_features, Stage1Timing* timing) const {
   if (rotations < 1 || kHeadingBins % rotations != 0) {
     throw InvalidArgument("stage1 predict: rotations must divide " + std::to_string(kHeadingBins) +
                           " (1, 2, 3, 4, 6, 12), got " + std::to_string(rotations));
   }
-  Stage1Output out = Predict(sample, with_features, timing);
-  if (rotations == 1 && !mirror) return out;
-  const std::size_t n = sample.points.size();
+  torch::NoGradGuard no_grad;
+  impl_->net->eval();
+  Stage1Timing local;
+  Stage1Output out;
+  const std::size_t n = scene.size;
   const int nc = impl_->config.num_classes;
-  Eigen::Vector2d centre = Eigen::Vector2d::Zero();
-  for (const auto& p : sample.points) centre += p.head<2>().cast<double>();
-  centre /= static_cast<double>(n);
-  Stage1Sample moved;
-  moved.name = sample.name;
-  moved.colors = sample.colors;
-  moved.points.resize(n);
-  int passes = 1;
-  for (int m = 0; m < (mirror ? 2 : 1); ++m) {
-    const double sign = m == 1 ? -1.0 : 1.0;  // x -> sign * x before the rotation
-    for (int k = 0; k < rotations; ++k) {
-      if (k == 0 && m == 0) continue;  // the plain pass above
-      const double theta = 2.0 * M_PI * k / rotations;
-      const double c = std::cos(theta), s = std::sin(theta);
-      for (std::size_t i = 0; i < n; ++i) {
-        const double x = sign * (sample.points[i].x() - centre.x());
-        const double y = sample.points[i].y() - centre.y();
-        moved.points[i] =
-            Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
-                            static_cast<float>(centre.y() + s * x + c * y), sample.points[i].z());
-      }
-      Stage1Timing t;
-      const Stage1Output r = Predict(moved, false, timing ? &t : nullptr);
-      ++passes;
-      if (timing) {
-        timing->voxelize_ms += t.voxelize_ms;
-        timing->kernel_map_ms += t.kernel_map_ms;
-        timing->unet_ms += t.unet_ms;
-        timing->heads_ms += t.heads_ms;
-      }
-      // A heading h of the input is sign * h (+ pi if mirrored) + theta in the moved scene:
-      // bin b here is bin (m * 6 + sign * b + shift) there, residual times sign.
-      const int shift = kHeadingBins * k / rotations;
-      for (std::size_t i = 0; i < n; ++i) {
-        for (int j = 0; j < nc; ++j) out.semantic_prob[i * nc + j] += r.semantic_prob[i * nc + j];
-        const Eigen::Vector3f& o = r.offsets[i];
-        out.offsets[i] += Eigen::Vector3f(static_cast<float>(sign * (c * o.x() + s * o.y())),
-                                          static_cast<float>(-s * o.x() + c * o.y()), o.z());
-        for (int b = 0; b < kHeadingBins; ++b) {
-          const int to =
-              ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
-              kHeadingBins;
-          const std::size_t from = i * kHeadingBins + static_cast<std::size_t>(to);
-          out.heading_prob[i * kHeadingBins + b] += r.heading_prob[from];
-          out.heading_residual[i * kHeadingBins + b] +=
-              static_cast<float>(sign) * r.heading_residual[from];
+  {
+    const HeadOutput h = impl_->ForwardScene(scene, &local, &out.frame);
+    const auto t0 = std::chrono::steady_clock::now();
+    const PassTensors p = ToPassTensors(h);
+    const float* pp = p.prob.data_ptr<float>();
+    out.semantic_prob.assign(pp, pp + n * nc);
+    const float* po = p.offset.data_ptr<float>();
+    out.offsets.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      out.offsets[i] = Eigen::Vector3f(po[3 * i], po[3 * i + 1], po[3 * i + 2]);
+    }
+    const float* hb = p.heading_prob.data_ptr<float>();
+    const float* hr = p.heading_residual.data_ptr<float>();
+    out.heading_prob.assign(hb, hb + n * kHeadingBins);
+    out.heading_residual.assign(hr, hr + n * kHeadingBins);
+    if (with_features) {
+      torch::Tensor f = h.features.to(torch::kCPU).contiguous();
+      out.features.assign(f.data_ptr<float>(), f.data_ptr<float>() + f.numel());
+    }
+    local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
+  }
+  if (rotations > 1 || mirror) {
+    // Every further pass runs on the moved points (one buffer, colours shared) and is added
+    // straight from its output tensors into `out`, mapped back to the input frame.
+    Eigen::Vector2d centre = Eigen::Vector2d::Zero();
+    for (std::size_t i = 0; i < n; ++i) centre += scene.points[i].head<2>().cast<double>();
+    centre /= static_cast<double>(n);
+    std::vector<Eigen::Vector3f> moved(n);
+    ScenePoints view = scene;
+    view.points = moved.data();
+    int passes = 1;
+    for (int m = 0; m < (mirror ? 2 : 1); ++m) {
+      const double sign = m == 1 ? -1.0 : 1.0;  // x -> sign * x before the rotation
+      for (int k = 0; k < rotations; ++k) {
+        if (k == 0 && m == 0) continue;  // the plain pass above
+        const double theta = 2.0 * M_PI * k / rotations;
+        const double c = std::cos(theta), s = std::sin(theta);
+        for (std::size_t i = 0; i < n; ++i) {
+          const double x = sign * (scene.points[i].x() - centre.x());
+          const double y = scene.points[i].y() - centre.y();
+          moved[i] =
+              Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
+                              static_cast<float>(centre.y() + s * x + c * y), scene.points[i].z());
         }
+        Stage1Timing t;
+        NetworkFrame unused;
+        const HeadOutput h = impl_->ForwardScene(view, &t, &unused);
+        const auto t0 = std::chrono::steady_clock::now();
+        const PassTensors p = ToPassTensors(h);
+        ++passes;
+        const float* rp = p.prob.data_ptr<float>();
+        const float* ro = p.offset.data_ptr<float>();
+        const float* rhb = p.heading_prob.data_ptr<float>();
+        const float* rhr = p.heading_residual.data_ptr<float>();
+        // A heading h of the input is sign * h (+ pi if mirrored) + theta in the moved scene:
+        // bin b here is bin (m * 6 + sign * b + shift) there, residual times sign.
+        const int shift = kHeadingBins * k / rotations;
+        for (std::size_t i = 0; i < n; ++i) {
+          for (int j = 0; j < nc; ++j) out.semantic_prob[i * nc + j] += rp[i * nc + j];
+          const Eigen::Vector3f o(ro[3 * i], ro[3 * i + 1], ro[3 * i + 2]);
+          out.offsets[i] += Eigen::Vector3f(static_cast<float>(sign * (c * o.x() + s * o.y())),
+                                            static_cast<float>(-s * o.x() + c * o.y()), o.z());
+          for (int b = 0; b < kHeadingBins; ++b) {
+            const int to =
+                ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
+                kHeadingBins;
+            const std::size_t from = i * kHeadingBins + static_cast<std::size_t>(to);
+            out.heading_prob[i * kHeadingBins + b] += rhb[from];
+            out.heading_residual[i * kHeadingBins + b] += static_cast<float>(sign) * rhr[from];
+          }
+        }
+        t.heads_ms += Ms(t0, std::chrono::steady_clock::now());
+        local.voxelize_ms += t.voxelize_ms;
+        local.kernel_map_ms += t.kernel_map_ms;
+        local.unet_ms += t.unet_ms;
+        local.heads_ms += t.heads_ms;
       }
     }
+    const float inv = 1.0f / static_cast<float>(passes);
+    for (auto& v : out.semantic_prob) v *= inv;
+    for (auto& v : out.heading_prob) v *= inv;
+    for (auto& v : out.heading_residual) v *= inv;
+    for (auto& o : out.offsets) o *= inv;
   }
-  const float inv = 1.0f / static_cast<float>(passes);
-  for (auto& v : out.semantic_prob) v *= inv;
-  for (auto& v : out.heading_prob) v *= inv;
-  for (auto& v : out.heading_residual) v *= inv;
-  for (auto& o : out.offsets) o *= inv;
+  out.semantic.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const float* row = out.semantic_prob.data() + i * nc;
     out.semantic[i] = static_cast<int>(std::max_element(row, row + nc) - row);
   }
+  if (timing) *timing = local;
   return out;
 }
 

@@ -72,9 +72,18 @@ TEST(BspConfig, ValidateNamesTheKeyAndRoundTrips) {
     c.Validate();
     FAIL();
   } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("BspConfig.resolution"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("BspConfig: resolution = 12"), std::string::npos)
+        << e.what();
   }
   EXPECT_THROW(BspConfig::FromString("resolution=32 bogus=1"), InvalidArgument);
+  // Strict values: trailing text is an error naming the key, not resolution 32.
+  try {
+    BspConfig::FromString("resolution=32x");
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("'resolution=32x'"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(BspConfig::FromString("decoder_widths=256,,512"), InvalidArgument);
   const BspConfig ref = BspConfig::Reference();
   EXPECT_EQ(ref.resolution, 64);
   EXPECT_EQ(ref.num_planes, 4096);

@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 #include "dimr/geometry/error.h"
@@ -77,6 +78,16 @@ TEST(Stage1Config, StringRoundTripAndErrors) {
     FAIL();
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("widths[1]"), std::string::npos) << e.what();
+  }
+  // Strict values: trailing text is an error naming the key (was read as 20 / 2).
+  for (const char* bad : {"scale=20x", "reps=2.5", "rgb=2", "widths=16,32,", "classes="}) {
+    try {
+      Stage1Config::FromString(bad);
+      ADD_FAILURE() << bad;
+    } catch (const InvalidArgument& e) {
+      const std::string key = std::string(bad).substr(0, std::string(bad).find('='));
+      EXPECT_NE(std::string(e.what()).find("'" + key + "="), std::string::npos) << e.what();
+    }
   }
 }
 
@@ -514,6 +525,120 @@ TEST(Stage1Model, RotationAndMirrorAveragingIsEquivariant) {
   EXPECT_EQ(model.PredictAugmented(s, 1, false).semantic_prob, plain.semantic_prob);
   EXPECT_THROW(model.PredictAugmented(s, 5, false), InvalidArgument);
   EXPECT_THROW(model.PredictAugmented(s, 0, true), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::nn
+
+namespace dimr::nn {
+namespace {
+
+// A room of `height` metres: floor, four walls up to `height`, a box; ~`n` points.
+std::vector<Eigen::Vector3f> LowRoom(float sx, float sy, float height, int n, std::uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(0, 1);
+  std::vector<Eigen::Vector3f> p;
+  for (int i = 0; i < n; ++i) {
+    const float r = u(rng);
+    if (r < 0.5f) {
+      p.emplace_back(sx * u(rng), sy * u(rng), 0.0f);
+    } else if (r < 0.9f) {
+      const bool along_x = u(rng) < 0.5f;
+      const float side = u(rng) < 0.5f ? 0.0f : 1.0f;
+      p.emplace_back(along_x ? sx * u(rng) : sx * side, along_x ? sy * side : sy * u(rng),
+                     height * u(rng));
+    } else {
+      p.emplace_back(1.0f + 0.5f * u(rng), 1.0f + 0.5f * u(rng), 0.45f * u(rng));
+    }
+  }
+  return p;
+}
+
+// Six U-Net levels at 5 cm like the shipped model: the grid is down-sampled 5 times (stride 32).
+Stage1Config SixLevels() {
+  Stage1Config c;
+  c.input.scale = 20;
+  c.widths = {4, 4, 4, 4, 4, 4};
+  return c;
+}
+
+TEST(Stage1Model, NetworkInputMatchesTheTrainingBatch) {
+  const Stage1Sample s = TinyRoom(5);
+  Stage1InputConfig input;
+  input.scale = 10;
+  const Stage1Batch batch = MakeStage1Batch({&s}, input, nullptr, 0);
+  const Stage1NetworkInput in =
+      MakeStage1NetworkInput(ScenePoints(s.points, nullptr, s.name), input);
+  EXPECT_EQ(in.voxel, batch.voxel);
+  EXPECT_EQ(in.features, batch.features);
+  EXPECT_EQ(in.frame.origin, batch.frames[0].origin);
+  std::int32_t zmax = 0;
+  for (std::size_t i = 0; i < in.voxel.size(); i += 4) zmax = std::max(zmax, in.voxel[i + 3]);
+  EXPECT_EQ(in.extent[2], zmax + 1);
+}
+
+TEST(Stage1Model, FlatRoomsPlanesAndSinglePointsSegment) {
+  const Stage1Model model(SixLevels(), 3);
+  // A ScanNet-like room whose points reach only 1.37 m: 28 voxels high at 5 cm, fewer than the
+  // 32 that five down-samplings need. It used to throw "cannot downsample spatial shape
+  // [4, 3, 1] (stride 16)".
+  const auto room = LowRoom(3.4f, 2.6f, 1.37f, 6000, 1);
+  const ScenePoints view(room, nullptr, "low_room");
+  EXPECT_LT(MakeStage1NetworkInput(view, model.config().input).extent[2], 32);
+  const Stage1Output out = model.PredictAugmented(view, 2, true);
+  ASSERT_EQ(out.semantic.size(), room.size());
+  ASSERT_EQ(out.semantic_prob.size(), room.size() * kStage1Classes);
+  for (float v : out.semantic_prob) ASSERT_TRUE(std::isfinite(v));
+  // The Stage1Sample path is the same computation.
+  Stage1Sample sample;
+  sample.name = "low_room";
+  sample.points = room;
+  EXPECT_EQ(model.PredictAugmented(sample, 2, true).semantic_prob, out.semantic_prob);
+
+  // One point; all points on one plane; a line.
+  const std::vector<Eigen::Vector3f> one{{1.0f, 2.0f, 0.5f}};
+  EXPECT_EQ(model.Predict(ScenePoints(one, nullptr)).semantic.size(), 1u);
+  std::vector<Eigen::Vector3f> plane, line;
+  for (int i = 0; i < 50; ++i) {
+    for (int j = 0; j < 50; ++j) plane.emplace_back(0.04f * i, 0.03f * j, 0.7f);
+    line.emplace_back(0.05f * i, 0.0f, 0.0f);
+  }
+  EXPECT_EQ(model.Predict(ScenePoints(plane, nullptr)).semantic.size(), plane.size());
+  EXPECT_EQ(model.PredictAugmented(ScenePoints(line, nullptr), 4, true).semantic.size(),
+            line.size());
+}
+
+TEST(Stage1Model, AMillionPointsAndBadCloudsDoNotCrash) {
+  const Stage1Model model(SixLevels(), 3);
+  const auto big = LowRoom(4.0f, 3.0f, 2.5f, 1000000, 2);
+  const Stage1Output out = model.Predict(ScenePoints(big, nullptr, "big"));
+  EXPECT_EQ(out.semantic.size(), big.size());
+  EXPECT_EQ(out.offsets.size(), big.size());
+
+  // A room in millimetres: a clear error, not a crash or a huge grid.
+  std::vector<Eigen::Vector3f> mm = LowRoom(3.4f, 2.6f, 2.4f, 2000, 3);
+  for (auto& p : mm) p *= 1000.0f;
+  try {
+    model.Predict(ScenePoints(mm, nullptr, "mm_room"));
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("millimetres"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("mm_room"), std::string::npos) << e.what();
+  }
+  std::vector<Eigen::Vector3f> nan = LowRoom(3.0f, 3.0f, 2.0f, 100, 4);
+  nan[42].y() = std::numeric_limits<float>::quiet_NaN();
+  try {
+    model.Predict(ScenePoints(nan, nullptr, "nan_room"));
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("point 42"), std::string::npos) << e.what();
+  }
+  const std::vector<Eigen::Vector3f> none;
+  EXPECT_THROW(model.Predict(ScenePoints(none, nullptr, "empty")), InvalidArgument);
+  Stage1Config rgb = SixLevels();
+  rgb.input.use_rgb = true;
+  const std::vector<Eigen::Vector3f> one{{0.0f, 0.0f, 0.0f}};
+  EXPECT_THROW(Stage1Model(rgb).Predict(ScenePoints(one, nullptr)), InvalidArgument);
 }
 
 }  // namespace

@@ -12,10 +12,12 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace dimr::nn {
@@ -129,6 +131,40 @@ struct Stage1Batch {
 Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
                             const Stage1InputConfig& input, const AugmentConfig* augment,
                             std::uint64_t seed);
+
+// ---------------------------------------------------------------- inference input
+// A view of one scene for inference, without labels (not a training sample): `size` points
+// (metres, z up, any origin) and optionally `size` colours in [0, 1] (colors == nullptr: none).
+// The arrays must outlive the call that takes the view.
+struct ScenePoints {
+  const Eigen::Vector3f* points = nullptr;
+  const Eigen::Vector3f* colors = nullptr;
+  std::size_t size = 0;
+  std::string name;  // for error messages
+  ScenePoints() = default;
+  ScenePoints(const std::vector<Eigen::Vector3f>& p, const std::vector<Eigen::Vector3f>* c,
+              std::string n = "")
+      : points(p.data()),
+        colors(c && !c->empty() ? c->data() : nullptr),
+        size(p.size()),
+        name(std::move(n)) {}
+};
+
+// What the network reads of one scene: the network frame, per point its voxel (b = 0, x, y,
+// z) = floor(scale * (p - origin) - min) and features (network-frame xyz [+ rgb - 0.5]) -
+// exactly what MakeStage1Batch builds for one sample without augmentation.
+struct Stage1NetworkInput {
+  NetworkFrame frame;
+  int feature_channels = 3;
+  std::vector<std::int32_t> voxel;              // N x 4
+  std::vector<float> features;                  // N x feature_channels
+  std::array<std::int64_t, 3> extent{0, 0, 0};  // voxels per axis (max + 1)
+};
+
+// Throws dimr::InvalidArgument naming the scene for an empty cloud, a non-finite point (its
+// index), missing colours when input.use_rgb, or a cloud spanning more than 65535 voxels along
+// an axis (e.g. a cloud in millimetres: the message says so).
+Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene, const Stage1InputConfig& input);
 
 // Shuffled epochs of batches built by `threads` background threads (prefetching `prefetch`
 // batches). Deterministic: batch k of epoch e depends only on (seed, e, k), not on threads.

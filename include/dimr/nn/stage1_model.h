@@ -153,6 +153,16 @@ class Stage1Model {
   Stage1Output PredictAugmented(const Stage1Sample& sample, int rotations, bool mirror,
                                 bool with_features = false, Stage1Timing* timing = nullptr) const;
 
+  // The same on a label-free view of the points (and colours): no training sample is built
+  // and no per-point array is copied besides the network input and, per augmented pass, the
+  // moved points. The voxel grid is padded to at least 2^(levels - 1) voxels per axis so that
+  // every U-Net level can down-sample (a flat room, a plane or a single point). Throws
+  // dimr::InvalidArgument naming the scene (MakeStage1NetworkInput) and for a bad rotations.
+  Stage1Output Predict(const ScenePoints& scene, bool with_features = false,
+                       Stage1Timing* timing = nullptr) const;
+  Stage1Output PredictAugmented(const ScenePoints& scene, int rotations, bool mirror,
+                                bool with_features = false, Stage1Timing* timing = nullptr) const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
