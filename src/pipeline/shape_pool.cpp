@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <iterator>
 #include <random>
@@ -17,7 +18,9 @@ namespace dimr::pipeline {
 namespace {
 
 constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'P', 'O', 'O', 'L'};
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 1;        // codes only
+constexpr std::uint32_t kVersionMeshes = 2;  // codes + a mesh path per entry
+constexpr std::uint32_t kMaxMeshPathLength = 4096;
 
 template <typename T>
 void Put(std::string* out, const T& v) {
@@ -112,10 +115,54 @@ Projection ShapePool::Project(const Eigen::VectorXf& code, int cad_class, int k)
   return out;
 }
 
+int ShapePool::AttachMeshTree(const std::string& root) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  if (!fs::is_directory(root, ec)) {
+    throw InvalidArgument("ShapePool::AttachMeshTree: '" + root + "' is not a folder");
+  }
+  std::vector<fs::path> synsets;
+  for (const auto& d : fs::directory_iterator(root, ec)) {
+    if (d.is_directory(ec)) synsets.push_back(d.path());
+  }
+  std::sort(synsets.begin(), synsets.end());
+  int found = 0;
+  for (auto& e : entries_) {
+    for (const auto& s : synsets) {
+      const fs::path p = s / e.model_id / "models" / "model_normalized.obj";
+      if (fs::is_regular_file(p, ec)) {
+        e.mesh_path = p.string();
+        ++found;
+        break;
+      }
+    }
+  }
+  return found;
+}
+
+void ShapePool::SetMeshPath(std::size_t index, const std::string& path) {
+  if (index >= entries_.size()) {
+    throw InvalidArgument("ShapePool::SetMeshPath: index " + std::to_string(index) +
+                          " out of range (" + std::to_string(entries_.size()) + " entries)");
+  }
+  if (path.size() > kMaxMeshPathLength) {
+    throw InvalidArgument("ShapePool::SetMeshPath: path longer than " +
+                          std::to_string(kMaxMeshPathLength) + " characters");
+  }
+  entries_[index].mesh_path = path;
+}
+
+int ShapePool::NumWithMeshes() const {
+  int n = 0;
+  for (const auto& e : entries_) n += e.mesh_path.empty() ? 0 : 1;
+  return n;
+}
+
 void ShapePool::Save(const std::string& path) const {
+  const bool meshes = NumWithMeshes() > 0;
   std::string out;
   out.append(kMagic, sizeof(kMagic));
-  Put(&out, kVersion);
+  Put(&out, meshes ? kVersionMeshes : kVersion);
   Put(&out, static_cast<std::int32_t>(latent_dim_));
   Put(&out, static_cast<std::uint64_t>(entries_.size()));
   const std::string hash = ContentHash();
@@ -126,6 +173,10 @@ void ShapePool::Save(const std::string& path) const {
     out.append(e.model_id);
     out.append(reinterpret_cast<const char*>(e.code.data()),
                static_cast<std::size_t>(e.code.size()) * sizeof(float));
+    if (meshes) {
+      Put(&out, static_cast<std::uint32_t>(e.mesh_path.size()));
+      out.append(e.mesh_path);
+    }
   }
   std::ofstream f(path, std::ios::binary | std::ios::trunc);
   if (!f) throw Error("cannot open '" + path + "' for writing");
@@ -153,8 +204,10 @@ ShapePool ShapePool::Load(const std::string& path) {
   pos += sizeof(kMagic);
   std::uint32_t version = 0;
   get(&version, "version");
-  if (version != kVersion)
+  if (version != kVersion && version != kVersionMeshes)
     throw ParseError(path, "unsupported pool version " + std::to_string(version));
+  const bool meshes = version == kVersionMeshes;
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
   std::int32_t dim = 0;
   get(&dim, "latent size");
   if (dim < 1 || dim > 65536)
@@ -185,6 +238,20 @@ ShapePool ShapePool::Load(const std::string& path) {
     e.code.resize(2 * dim);
     std::memcpy(e.code.data(), b.data() + pos, code_bytes);
     pos += code_bytes;
+    if (meshes) {
+      std::uint32_t mlen = 0;
+      get(&mlen, where + " mesh path length");
+      if (mlen > kMaxMeshPathLength) {
+        throw ParseError(path, where + ": mesh path length " + std::to_string(mlen) + " exceeds " +
+                                   std::to_string(kMaxMeshPathLength));
+      }
+      need(mlen, where + " mesh path");
+      e.mesh_path = b.substr(pos, mlen);
+      pos += mlen;
+      if (!e.mesh_path.empty() && std::filesystem::path(e.mesh_path).is_relative()) {
+        e.mesh_path = (folder / e.mesh_path).string();
+      }
+    }
     try {
       pool.Add(std::move(e));
     } catch (const InvalidArgument& err) {

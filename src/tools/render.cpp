@@ -345,4 +345,189 @@ void RenderSheet(const std::vector<RenderTile>& models, int cols, int tile,
   WritePng(out, w, h, rgb);
 }
 
+// ---------------------------------------------------------------------------------------
+// Perspective scene panels.
+// ---------------------------------------------------------------------------------------
+Vec3 PaletteColour(int index) {
+  static const std::array<Vec3, 12> kPalette = {
+      Vec3(0.90, 0.35, 0.30), Vec3(0.30, 0.55, 0.90), Vec3(0.35, 0.75, 0.35),
+      Vec3(0.95, 0.70, 0.20), Vec3(0.65, 0.40, 0.80), Vec3(0.25, 0.75, 0.75),
+      Vec3(0.90, 0.50, 0.70), Vec3(0.60, 0.45, 0.30), Vec3(0.55, 0.80, 0.20),
+      Vec3(0.20, 0.40, 0.60), Vec3(0.85, 0.55, 0.40), Vec3(0.50, 0.50, 0.85)};
+  const int n = static_cast<int>(kPalette.size());
+  return kPalette[((index % n) + n) % n];
+}
+
+namespace {
+
+struct Camera {
+  Vec3 eye, right, up, fwd;
+  double focal = 1;  // pixels
+  double cx = 0, cy = 0;
+  // Pixel position (x, y) and depth along fwd; depth <= 0 = behind the camera.
+  Vec3 Project(const Vec3& p) const {
+    const Vec3 d = p - eye;
+    const double z = d.dot(fwd);
+    if (z <= 1e-6) return Vec3(0, 0, -1);
+    return Vec3(cx + focal * d.dot(right) / z, cy - focal * d.dot(up) / z, z);
+  }
+};
+
+void RasterTriangle(Image& img, std::vector<double>& zbuf, int x0, int w, int h, const Vec3& a,
+                    const Vec3& b, const Vec3& c, const Vec3& colour) {
+  if (a.z() <= 0 || b.z() <= 0 || c.z() <= 0) return;
+  const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
+  if (std::abs(area) < 1e-12) return;
+  const int xa = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()}))));
+  const int xb = std::min(w - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()}))));
+  const int ya = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()}))));
+  const int yb = std::min(h - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+  for (int y = ya; y <= yb; ++y) {
+    for (int x = xa; x <= xb; ++x) {
+      const double px = x + 0.5, py = y + 0.5;
+      const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) / area;
+      const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) / area;
+      const double w2 = 1.0 - w0 - w1;
+      if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+      // Perspective-correct depth: interpolate 1/z.
+      const double iz = w0 / a.z() + w1 / b.z() + w2 / c.z();
+      const double z = 1.0 / iz;
+      double& zb = zbuf[static_cast<std::size_t>(y) * w + x];
+      if (z >= zb) continue;
+      zb = z;
+      img.Set(x0 + x, y, colour);
+    }
+  }
+}
+
+void RasterLine(Image& img, std::vector<double>& zbuf, int x0, int w, int h, const Vec3& a,
+                const Vec3& b, const Vec3& colour, int thickness) {
+  if (a.z() <= 0 || b.z() <= 0) return;
+  const double len = std::max(std::abs(b.x() - a.x()), std::abs(b.y() - a.y()));
+  const int steps = std::max(1, static_cast<int>(std::ceil(len)));
+  for (int s = 0; s <= steps; ++s) {
+    const double t = static_cast<double>(s) / steps;
+    const double x = a.x() + t * (b.x() - a.x()), y = a.y() + t * (b.y() - a.y());
+    const double z = 1.0 / ((1 - t) / a.z() + t / b.z());
+    for (int dy = -thickness / 2; dy <= thickness / 2; ++dy) {
+      for (int dx = -thickness / 2; dx <= thickness / 2; ++dx) {
+        const int xi = static_cast<int>(x) + dx, yi = static_cast<int>(y) + dy;
+        if (xi < 0 || yi < 0 || xi >= w || yi >= h) continue;
+        double& zb = zbuf[static_cast<std::size_t>(yi) * w + xi];
+        if (z >= zb * 1.02 + 0.02) continue;  // lines win near-ties with surfaces
+        zb = std::min(zb, z);
+        img.Set(x0 + xi, yi, colour);
+      }
+    }
+  }
+}
+
+}  // namespace
+
+void RenderScenePanels(const std::vector<ScenePanel>& panels, int width, int height,
+                       const std::string& out) {
+  if (panels.empty()) throw InvalidArgument("RenderScenePanels: no panels");
+  if (width < 16 || height < 16) throw InvalidArgument("RenderScenePanels: size below 16 px");
+  geometry::AABB bounds;
+  for (const auto& p : panels) {
+    for (const auto& q : p.points) {
+      if (q.allFinite()) bounds.Extend(q);
+    }
+    for (const auto& m : p.meshes) {
+      for (const auto& v : m.mesh.vertices) {
+        if (v.allFinite()) bounds.Extend(v);
+      }
+    }
+  }
+  if (bounds.Empty()) throw InvalidArgument("RenderScenePanels: nothing to frame");
+  constexpr int kSs = 2;
+  const int pw = width * kSs, ph = height * kSs;
+  const int title_h = 14 * kSs;
+  // Camera from above the (-x, -y) corner, looking at the centre, 40 degrees down.
+  const Vec3 centre = bounds.Center();
+  const double radius = std::max(0.5 * bounds.Extent().norm(), 0.25);
+  Camera cam;
+  const Vec3 dir = Vec3(-0.62, -0.95, 0.9).normalized();  // from the centre to the eye
+  const double fov = 40.0 * M_PI / 180.0;
+  cam.focal = 0.5 * std::min(pw, ph - title_h) / std::tan(0.5 * fov);
+  cam.eye = centre + dir * (radius / std::sin(0.5 * fov)) * 1.02;
+  cam.fwd = (centre - cam.eye).normalized();
+  cam.right = cam.fwd.cross(Vec3::UnitZ()).normalized();
+  cam.up = cam.right.cross(cam.fwd);
+  cam.cx = 0.5 * pw;
+  cam.cy = 0.5 * (ph + title_h);
+  const Vec3 light = Vec3(0.4, -0.3, 1.0).normalized();
+  const int n = static_cast<int>(panels.size());
+  Image big(n * pw, ph, 1.0f);
+  const double point_px = std::max(1.0, 1.3 * kSs * width / 640.0);
+  for (int k = 0; k < n; ++k) {
+    const ScenePanel& panel = panels[k];
+    const int x0 = k * pw;
+    std::vector<double> zbuf(static_cast<std::size_t>(pw) * ph, 1e30);
+    for (const auto& m : panel.meshes) {
+      std::vector<Vec3> proj(m.mesh.vertices.size());
+      for (std::size_t i = 0; i < proj.size(); ++i) proj[i] = cam.Project(m.mesh.vertices[i]);
+      for (const auto& f : m.mesh.faces) {
+        const Vec3& a = m.mesh.vertices[f[0]];
+        const Vec3 nrm = (m.mesh.vertices[f[1]] - a).cross(m.mesh.vertices[f[2]] - a);
+        if (nrm.norm() == 0) continue;
+        Vec3 nn = nrm.normalized();
+        if (nn.dot(cam.eye - a) < 0) nn = -nn;  // two-sided
+        const double shade =
+            0.35 + 0.5 * std::max(0.0, nn.dot(light)) + 0.15 * std::abs(nn.dot(cam.fwd));
+        RasterTriangle(big, zbuf, x0, pw, ph, proj[f[0]], proj[f[1]], proj[f[2]], m.color * shade);
+      }
+    }
+    for (std::size_t i = 0; i < panel.points.size(); ++i) {
+      if (!panel.points[i].allFinite()) continue;
+      const Vec3 q = cam.Project(panel.points[i]);
+      if (q.z() <= 0) continue;
+      const Vec3 colour =
+          i < panel.point_colors.size() ? panel.point_colors[i] : Vec3(0.55, 0.55, 0.55);
+      const int r = static_cast<int>(std::ceil(point_px * 4.0 * radius / (q.z() + 1e-9) * 0.25));
+      const int rad = std::clamp(r, 1, 3 * kSs);
+      for (int dy = 0; dy < rad; ++dy) {
+        for (int dx = 0; dx < rad; ++dx) {
+          const int xi = static_cast<int>(q.x()) + dx, yi = static_cast<int>(q.y()) + dy;
+          if (xi < 0 || yi < 0 || xi >= pw || yi >= ph) continue;
+          double& zb = zbuf[static_cast<std::size_t>(yi) * pw + xi];
+          if (q.z() >= zb) continue;
+          zb = q.z();
+          big.Set(x0 + xi, yi, colour);
+        }
+      }
+    }
+    for (const auto& b : panel.boxes) {
+      const auto c = b.box.Corners();
+      static const int kEdges[12][2] = {{0, 1}, {1, 2}, {2, 3}, {3, 0}, {4, 5}, {5, 6},
+                                        {6, 7}, {7, 4}, {0, 4}, {1, 5}, {2, 6}, {3, 7}};
+      for (const auto& e : kEdges) {
+        RasterLine(big, zbuf, x0, pw, ph, cam.Project(c[e[0]]), cam.Project(c[e[1]]), b.color, kSs);
+      }
+    }
+    DrawText(big, x0 + 4 * kSs, 3 * kSs, panel.title, 2 * kSs, Vec3(0.1, 0.1, 0.1));
+    // Panel separator.
+    if (k > 0) {
+      for (int y = 0; y < ph; ++y) big.Set(x0, y, Vec3(0.7, 0.7, 0.7));
+    }
+  }
+  const int w = n * width, h = height;
+  std::vector<std::uint8_t> rgb(static_cast<std::size_t>(3) * w * h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int c = 0; c < 3; ++c) {
+        double acc = 0;
+        for (int dy = 0; dy < kSs; ++dy) {
+          for (int dx = 0; dx < kSs; ++dx) {
+            acc += big.rgb[3 * (static_cast<std::size_t>(y * kSs + dy) * big.w + x * kSs + dx) + c];
+          }
+        }
+        rgb[3 * (static_cast<std::size_t>(y) * w + x) + c] =
+            static_cast<std::uint8_t>(std::lround(255.0 * std::clamp(acc / (kSs * kSs), 0.0, 1.0)));
+      }
+    }
+  }
+  WritePng(out, w, h, rgb);
+}
+
 }  // namespace dimr::tools

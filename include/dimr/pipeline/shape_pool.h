@@ -17,6 +17,11 @@ struct PoolEntry {
   std::string model_id;
   int cad_class = 0;
   Eigen::VectorXf code;  // [mu, logvar], 2 * latent_dim
+  // Where the entry's CAD mesh is (retrieval): a mesh file (.obj in ShapeNet axes, y up,
+  // -z forward, as model_normalized.obj; or .ply/.obj in canonical axes when it ends in
+  // ".canonical.ply"); empty = unknown. Relative paths in a pool file are resolved against the
+  // file's folder on Load. Not part of ContentHash (the codes are).
+  std::string mesh_path = "";
 };
 
 struct PoolMatch {
@@ -51,7 +56,18 @@ class ShapePool {
   // has no entries.
   Projection Project(const Eigen::VectorXf& code, int cad_class, int k) const;
 
+  // Fills mesh_path of every entry whose `<root>/<synset>/<model_id>/models/model_normalized.obj`
+  // exists (any synset folder of the ShapeNet-style tree `root`). Returns how many entries got
+  // a path. Throws dimr::InvalidArgument if `root` is not a folder.
+  int AttachMeshTree(const std::string& root);
+  // Sets one entry's mesh path (index into entries()).
+  void SetMeshPath(std::size_t index, const std::string& path);
+  // Number of entries with a mesh path.
+  int NumWithMeshes() const;
+
   // Binary file with magic, version, latent size and the content hash (verified on load).
+  // Version 1 (no mesh paths) is written when no entry has a mesh path, version 2 (a path per
+  // entry) otherwise; both load.
   void Save(const std::string& path) const;
   static ShapePool Load(const std::string& path);
 
