@@ -9,18 +9,21 @@
 #include <atomic>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "dimr/data/cad_library.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/scannet_io.h"
 #include "dimr/data/shapenet_io.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/ply_io.h"
 #include "dimr/pipeline/placement.h"
+#include "dimr/pipeline/shape_pool.h"
 #include "tools/command_registry.h"
 
 namespace {
@@ -145,6 +148,50 @@ void RunExportGt(const ExportArgs& a) {
   }
 }
 
+struct PoolMeshArgs {
+  std::string pool = "models/bsp/pool.bin";
+  std::uint64_t seed = 1;
+  int per_class = 250;
+  std::string out;
+  std::string write_pool;
+};
+
+// The model seeds of `dimr bsp prepare` (src/tools/cmd_bsp_prepare.cpp ModelSeed): the shipped
+// pool encodes `bsp prepare --per-class 250 --seed 1`. A drift between the two is caught below:
+// every pool id must be regenerated.
+std::uint64_t PrepareModelSeed(std::uint64_t seed, int cad_class, int i) {
+  return seed * 1000003ull + static_cast<std::uint64_t>(cad_class) * 7919ull * 1000003ull +
+         static_cast<std::uint64_t>(i);
+}
+
+void RunExportPoolMeshes(const PoolMeshArgs& a) {
+  dimr::pipeline::ShapePool pool = dimr::pipeline::ShapePool::Load(a.pool);
+  std::map<std::string, std::size_t> index;
+  for (std::size_t i = 0; i < pool.size(); ++i) index[pool.entries()[i].model_id] = i;
+  std::vector<dimr::data::CadModel> models;
+  for (int c = 0; c < dimr::data::kNumCadClasses; ++c) {
+    for (int i = 0; i < a.per_class; ++i) {
+      dimr::data::CadModel m = dimr::data::GenerateCadModel(c, PrepareModelSeed(a.seed, c, i));
+      if (index.count(m.model_id) != 0) models.push_back(std::move(m));
+    }
+  }
+  if (models.size() != pool.size()) {
+    throw dimr::InvalidArgument(
+        "export pool-meshes: regenerated " + std::to_string(models.size()) + " of the " +
+        std::to_string(pool.size()) + " pool models from --seed " + std::to_string(a.seed) +
+        " --per-class " + std::to_string(a.per_class) +
+        " (pass the `dimr bsp prepare` arguments the pool was encoded from)");
+  }
+  dimr::data::WriteShapeNetTree(a.out, models);
+  const int attached = pool.AttachMeshTree(a.out);
+  std::printf("wrote %zu pool CAD models to %s (%d pool entries have a mesh)\n", models.size(),
+              a.out.c_str(), attached);
+  if (!a.write_pool.empty()) {
+    pool.Save(a.write_pool);
+    std::printf("wrote the pool with mesh paths to %s\n", a.write_pool.c_str());
+  }
+}
+
 void SetupExport(CLI::App& app) {
   app.require_subcommand(1);
   auto* gt = app.add_subcommand("gt",
@@ -157,6 +204,18 @@ void SetupExport(CLI::App& app) {
   gt->add_option("--out", a->out, "output folder (meshes/, points/)")->required();
   gt->add_option("--jobs", a->jobs, "threads (0 = all cores)")->capture_default_str();
   gt->callback([a]() { RunExportGt(*a); });
+  auto* pm = app.add_subcommand(
+      "pool-meshes",
+      "The CAD meshes of a procedural shape pool as a ShapeNet-style tree (retrieval)");
+  auto p = std::make_shared<PoolMeshArgs>();
+  pm->add_option("--pool", p->pool, "shape pool (dimr encode-pool)")->capture_default_str();
+  pm->add_option("--seed", p->seed, "the `dimr bsp prepare --seed` of the pool's models")
+      ->capture_default_str();
+  pm->add_option("--per-class", p->per_class, "the `dimr bsp prepare --per-class`")
+      ->capture_default_str();
+  pm->add_option("--out", p->out, "output ShapeNet-style tree")->required();
+  pm->add_option("--write-pool", p->write_pool, "also write the pool with these mesh paths here");
+  pm->callback([p]() { RunExportPoolMeshes(*p); });
 }
 
 const dimr::tools::Registrar kReg("", "export", "Export evaluation ground truth (`export gt`)",

@@ -7,6 +7,8 @@
 
 #include "../cli_run.h"
 #include "dimr/geometry/ply_io.h"
+#include "dimr/pipeline/placement.h"
+#include "dimr/pipeline/shape_pool.h"
 
 #ifdef DIMR_CLI
 namespace dimr {
@@ -49,6 +51,28 @@ TEST(ExportGt, GroundTruthAgainstItselfScoresOneHundred) {
   const auto row_end = out.find("\n\n", out.find("|---", pcr));
   const std::string row = out.substr(0, row_end);
   EXPECT_EQ(row.substr(row.rfind('|', row.size() - 2)), "| 100.00 |") << row;
+}
+
+TEST(ExportPoolMeshes, EveryShippedPoolModelGetsItsCadMesh) {
+  const fs::path dir = testing::FreshTempDir("dimr_export_pool");
+  const std::string pool = std::string(DIMR_SOURCE_DIR) + "/models/bsp/pool.bin";
+  auto [rc, out] =
+      testing::RunCli("export pool-meshes --pool " + pool + " --out " + (dir / "tree").string() +
+                      " --write-pool " + (dir / "pool.bin").string());
+  ASSERT_EQ(rc, 0) << out;
+  const pipeline::ShapePool with = pipeline::ShapePool::Load((dir / "pool.bin").string());
+  const pipeline::ShapePool shipped = pipeline::ShapePool::Load(pool);
+  EXPECT_EQ(with.ContentHash(), shipped.ContentHash());
+  EXPECT_EQ(static_cast<std::size_t>(with.NumWithMeshes()), with.size());
+  // A mesh is the model it claims: a non-empty canonical mesh in the entry's own folder.
+  const auto& e = with.entries()[7];
+  EXPECT_NE(e.mesh_path.find(e.model_id), std::string::npos);
+  EXPECT_FALSE(pipeline::ReadShapeNetMeshCanonical(e.mesh_path).empty());
+  // Wrong generator arguments are refused, not silently half-attached.
+  std::tie(rc, out) = testing::RunCli("export pool-meshes --pool " + pool + " --seed 2 --out " +
+                                      (dir / "bad").string());
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("regenerated 0 of the"), std::string::npos) << out;
 }
 
 TEST(ExportGt, AFolderWithoutScenesIsAClearError) {
