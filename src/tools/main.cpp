@@ -32,6 +32,7 @@ const std::map<std::string, std::string>& GroupDescriptions() {
       {"bsp", "BSP-CVAE shape autoencoder: data, evaluation, interpolation"},
       {"cad", "Procedural CAD library"},
       {"stage1", "Stage-1 point-wise network: data preparation, inspection, evaluation"},
+      {"stage2", "Stage-2 proposal network: proposal caches, evaluation, GT checks"},
   };
   return kGroups;
 }
