@@ -3,15 +3,18 @@
 // mesh placed like the reference's GT meshes (dimr-metrics.md section 1.2: axes remapped,
 // per-axis normalised, scaled to the box, rotated by its heading, translated) written as
 // `meshes/{scene}_{k}_{class}_1.ply`, and the PCR point files `points/{scene}.ply` (x y z,
-// semantic_label, instance_label; eval/inputs.h). Then
+// semantic_label, instance_label; eval/inputs.h), and `instances.json` (per GT mesh: scene,
+// file, class, instance id, CAD model id, box, point count). Then
 //   dimr reconstruct SPLIT --out PRED && dimr eval --pred PRED --gt GT/meshes --gt-points GT/points
 #include <algorithm>
 #include <atomic>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
 #include <vector>
@@ -38,6 +41,7 @@ struct ExportArgs {
 };
 
 struct SceneCount {
+  nlohmann::json instances = nlohmann::json::array();  // one per GT mesh
   int meshes = 0;
   int missing_models = 0;
   std::size_t points = 0;
@@ -66,6 +70,18 @@ SceneCount ExportScene(const fs::path& scene_dir, const fs::path& shapenet, cons
     const std::string name = scene.name + "_" + std::to_string(k) + "_" +
                              dimr::data::CadClassNames()[inst.cad_class] + "_1.ply";
     dimr::geometry::WritePly((out / "meshes" / name).string(), placed);
+    count.instances.push_back(
+        {{"scene", scene.name},
+         {"mesh", "meshes/" + name},
+         {"class", dimr::data::CadClassNames()[inst.cad_class]},
+         {"instance", inst.id},
+         {"model_id", inst.model_id},
+         {"synset", synset},
+         {"box",
+          {{"center", {inst.box.center.x(), inst.box.center.y(), inst.box.center.z()}},
+           {"size", {inst.box.size.x(), inst.box.size.y(), inst.box.size.z()}},
+           {"heading", inst.box.heading}}},
+         {"num_points", inst.num_points}});
     ++count.meshes;
     ++k;
   }
@@ -133,10 +149,17 @@ void RunExportGt(const ExportArgs& a) {
   }
   int meshes = 0, missing = 0;
   std::size_t points = 0;
+  nlohmann::json index = nlohmann::json::array();
   for (const auto& c : counts) {
+    for (const auto& i : c.instances) index.push_back(i);
     meshes += c.meshes;
     missing += c.missing_models;
     points += c.points;
+  }
+  {
+    std::ofstream f(out / "instances.json");
+    f << index.dump(1) << "\n";
+    if (!f) throw dimr::Error("cannot write '" + (out / "instances.json").string() + "'");
   }
   std::printf("exported %zu scenes: %d GT meshes in %s, %zu PCR points in %s\n", scenes.size(),
               meshes, (out / "meshes").string().c_str(), points, (out / "points").string().c_str());
