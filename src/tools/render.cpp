@@ -373,8 +373,10 @@ struct Camera {
   }
 };
 
+// `bias`: a surface wins against what is already drawn up to this much behind it (meshes over
+// the observed points that lie on them).
 void RasterTriangle(Image& img, std::vector<double>& zbuf, int x0, int w, int h, const Vec3& a,
-                    const Vec3& b, const Vec3& c, const Vec3& colour) {
+                    const Vec3& b, const Vec3& c, const Vec3& colour, double bias) {
   if (a.z() <= 0 || b.z() <= 0 || c.z() <= 0) return;
   const double area = (b.x() - a.x()) * (c.y() - a.y()) - (b.y() - a.y()) * (c.x() - a.x());
   if (std::abs(area) < 1e-12) return;
@@ -393,7 +395,7 @@ void RasterTriangle(Image& img, std::vector<double>& zbuf, int x0, int w, int h,
       const double iz = w0 / a.z() + w1 / b.z() + w2 / c.z();
       const double z = 1.0 / iz;
       double& zb = zbuf[static_cast<std::size_t>(y) * w + x];
-      if (z >= zb) continue;
+      if (z >= zb + bias) continue;
       zb = z;
       img.Set(x0 + x, y, colour);
     }
@@ -443,27 +445,61 @@ void RenderScenePanels(const std::vector<ScenePanel>& panels, int width, int hei
   constexpr int kSs = 2;
   const int pw = width * kSs, ph = height * kSs;
   const int title_h = 14 * kSs;
-  // Camera from above the (-x, -y) corner, looking at the centre, 40 degrees down.
+  // Camera from above the (-x, -y) corner, looking at the centre, about 40 degrees down; the
+  // focal length is then chosen so that the projected bounding box fills the panel.
   const Vec3 centre = bounds.Center();
   const double radius = std::max(0.5 * bounds.Extent().norm(), 0.25);
   Camera cam;
   const Vec3 dir = Vec3(-0.62, -0.95, 0.9).normalized();  // from the centre to the eye
-  const double fov = 40.0 * M_PI / 180.0;
-  cam.focal = 0.5 * std::min(pw, ph - title_h) / std::tan(0.5 * fov);
-  cam.eye = centre + dir * (radius / std::sin(0.5 * fov)) * 1.02;
+  cam.eye = centre + dir * radius * 2.2;
   cam.fwd = (centre - cam.eye).normalized();
   cam.right = cam.fwd.cross(Vec3::UnitZ()).normalized();
   cam.up = cam.right.cross(cam.fwd);
-  cam.cx = 0.5 * pw;
-  cam.cy = 0.5 * (ph + title_h);
+  cam.focal = 1.0;
+  cam.cx = 0;
+  cam.cy = 0;
+  double umin = 1e30, umax = -1e30, vmin = 1e30, vmax = -1e30;
+  for (int c = 0; c < 8; ++c) {
+    const Vec3 corner((c & 1) ? bounds.max.x() : bounds.min.x(),
+                      (c & 2) ? bounds.max.y() : bounds.min.y(),
+                      (c & 4) ? bounds.max.z() : bounds.min.z());
+    const Vec3 q = cam.Project(corner);
+    umin = std::min(umin, q.x());
+    umax = std::max(umax, q.x());
+    vmin = std::min(vmin, q.y());
+    vmax = std::max(vmax, q.y());
+  }
+  const double avail_w = 0.94 * pw, avail_h = 0.94 * (ph - title_h);
+  cam.focal =
+      std::min(avail_w / std::max(umax - umin, 1e-9), avail_h / std::max(vmax - vmin, 1e-9));
+  cam.cx = 0.5 * pw - cam.focal * 0.5 * (umin + umax);
+  cam.cy = title_h + 0.5 * (ph - title_h) - cam.focal * 0.5 * (vmin + vmax);
   const Vec3 light = Vec3(0.4, -0.3, 1.0).normalized();
   const int n = static_cast<int>(panels.size());
   Image big(n * pw, ph, 1.0f);
-  const double point_px = std::max(1.0, 1.3 * kSs * width / 640.0);
+  const int point_px = std::max(2, static_cast<int>(std::lround(1.5 * kSs * width / 800.0)));
   for (int k = 0; k < n; ++k) {
     const ScenePanel& panel = panels[k];
     const int x0 = k * pw;
     std::vector<double> zbuf(static_cast<std::size_t>(pw) * ph, 1e30);
+    for (std::size_t i = 0; i < panel.points.size(); ++i) {
+      if (!panel.points[i].allFinite()) continue;
+      const Vec3 q = cam.Project(panel.points[i]);
+      if (q.z() <= 0) continue;
+      const Vec3 colour =
+          i < panel.point_colors.size() ? panel.point_colors[i] : Vec3(0.55, 0.55, 0.55);
+      const int rad = point_px;
+      for (int dy = 0; dy < rad; ++dy) {
+        for (int dx = 0; dx < rad; ++dx) {
+          const int xi = static_cast<int>(q.x()) + dx, yi = static_cast<int>(q.y()) + dy;
+          if (xi < 0 || yi < 0 || xi >= pw || yi >= ph) continue;
+          double& zb = zbuf[static_cast<std::size_t>(yi) * pw + xi];
+          if (q.z() >= zb) continue;
+          zb = q.z();
+          big.Set(x0 + xi, yi, colour);
+        }
+      }
+    }
     for (const auto& m : panel.meshes) {
       std::vector<Vec3> proj(m.mesh.vertices.size());
       for (std::size_t i = 0; i < proj.size(); ++i) proj[i] = cam.Project(m.mesh.vertices[i]);
@@ -475,26 +511,8 @@ void RenderScenePanels(const std::vector<ScenePanel>& panels, int width, int hei
         if (nn.dot(cam.eye - a) < 0) nn = -nn;  // two-sided
         const double shade =
             0.35 + 0.5 * std::max(0.0, nn.dot(light)) + 0.15 * std::abs(nn.dot(cam.fwd));
-        RasterTriangle(big, zbuf, x0, pw, ph, proj[f[0]], proj[f[1]], proj[f[2]], m.color * shade);
-      }
-    }
-    for (std::size_t i = 0; i < panel.points.size(); ++i) {
-      if (!panel.points[i].allFinite()) continue;
-      const Vec3 q = cam.Project(panel.points[i]);
-      if (q.z() <= 0) continue;
-      const Vec3 colour =
-          i < panel.point_colors.size() ? panel.point_colors[i] : Vec3(0.55, 0.55, 0.55);
-      const int r = static_cast<int>(std::ceil(point_px * 4.0 * radius / (q.z() + 1e-9) * 0.25));
-      const int rad = std::clamp(r, 1, 3 * kSs);
-      for (int dy = 0; dy < rad; ++dy) {
-        for (int dx = 0; dx < rad; ++dx) {
-          const int xi = static_cast<int>(q.x()) + dx, yi = static_cast<int>(q.y()) + dy;
-          if (xi < 0 || yi < 0 || xi >= pw || yi >= ph) continue;
-          double& zb = zbuf[static_cast<std::size_t>(yi) * pw + xi];
-          if (q.z() >= zb) continue;
-          zb = q.z();
-          big.Set(x0 + xi, yi, colour);
-        }
+        RasterTriangle(big, zbuf, x0, pw, ph, proj[f[0]], proj[f[1]], proj[f[2]], m.color * shade,
+                       0.03);
       }
     }
     for (const auto& b : panel.boxes) {
