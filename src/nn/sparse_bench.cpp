@@ -12,7 +12,9 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <tuple>
 #include <unordered_set>
+#include <utility>
 
 #include "dimr/geometry/error.h"
 #include "dimr/nn/sparse_ops.h"
@@ -206,6 +208,98 @@ double UNetForwardFlops(const SparseUNetConfig& cfg, SparseContext& ctx) {
   return flops;
 }
 
+// "AMD EPYC (family 25, model 17)" from /proc/cpuinfo ("unknown CPU" elsewhere).
+std::string CpuModel() {
+  std::ifstream f("/proc/cpuinfo");
+  std::string line, name, family, model;
+  auto value = [](const std::string& l) {
+    const size_t c = l.find(':');
+    if (c == std::string::npos) return std::string();
+    size_t b = l.find_first_not_of(" \t", c + 1);
+    return b == std::string::npos ? std::string() : l.substr(b);
+  };
+  while (std::getline(f, line)) {
+    if (name.empty() && line.rfind("model name", 0) == 0) name = value(line);
+    if (family.empty() && line.rfind("cpu family", 0) == 0) family = value(line);
+    if (model.empty() && line.rfind("model", 0) == 0 && line.rfind("model name", 0) != 0) {
+      model = value(line);
+    }
+    if (!name.empty() && !family.empty() && !model.empty()) break;
+  }
+  if (name.empty()) return "unknown CPU";
+  if (!family.empty()) name += " (family " + family + ", model " + model + ")";
+  return name;
+}
+
+std::string CpuIsa() {
+  std::string isa;
+  if (__builtin_cpu_supports("avx512f")) isa += "avx512f ";
+  if (__builtin_cpu_supports("avx2")) isa += "avx2 ";
+  if (__builtin_cpu_supports("fma")) isa += "fma ";
+  if (isa.empty()) return "sse2";
+  isa.pop_back();
+  return isa;
+}
+
+// One-thread sgemm, 2048^3, median of 3 after a warm-up (the reference for the fused rows):
+// {GFLOP/s over wall time, over process CPU time}.
+std::pair<double, double> OneThreadSgemmGflops() {
+  const int saved = at::get_num_threads();
+  at::set_num_threads(1);
+  const int64_t n = 2048;
+  at::Tensor a = at::randn({n, n}), b = at::randn({n, n}), c = at::empty({n, n});
+  std::vector<double> ms, cpu;
+  for (int r = 0; r < 4; ++r) {
+    const double c0 = CpuMs();
+    auto t0 = Clock::now();
+    at::mm_out(c, a, b);
+    if (r > 0) {
+      ms.push_back(Ms(t0, Clock::now()));
+      cpu.push_back(CpuMs() - c0);
+    }
+  }
+  at::set_num_threads(saved);
+  const double flops = 2.0 * n * n * n;
+  return {flops / (Median(ms) * 1e6), flops / (Median(cpu) * 1e6)};
+}
+
+// The kernel paths named by the options, deduplicated, in order.
+std::vector<SparseKernelPath> KernelPaths(const std::vector<std::string>& names) {
+  std::vector<SparseKernelPath> out;
+  auto add = [&](SparseKernelPath p) {
+    if (!SparseKernelPathSupported(p)) {
+      throw InvalidArgument(std::string("bench sparse: this CPU cannot run the ") +
+                            SparseKernelPathName(p) + " kernels");
+    }
+    if (std::find(out.begin(), out.end(), p) == out.end()) out.push_back(p);
+  };
+  for (const std::string& n : names) {
+    if (n == "all") {
+      for (SparseKernelPath p : SupportedSparseKernelPaths()) add(p);
+    } else if (n == "auto") {
+      add(ResolveSparseKernelPath());
+    } else {
+      add(ParseSparseKernelPath(n));
+    }
+  }
+  if (out.empty()) out.push_back(ResolveSparseKernelPath());
+  return out;
+}
+
+// Restores the process-wide backend and kernel path.
+class BackendRestore {
+ public:
+  BackendRestore() : backend_(GetSparseBackend()), path_(GetSparseKernelPath()) {}
+  ~BackendRestore() {
+    SetSparseBackend(backend_);
+    SetSparseKernelPath(path_);
+  }
+
+ private:
+  SparseBackend backend_;
+  SparseKernelPath path_;
+};
+
 }  // namespace
 
 RoomCloud GenerateRoomCloud(int64_t target_voxels, uint64_t seed) {
@@ -263,9 +357,14 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       throw InvalidArgument("bench sparse: width " + std::to_string(w) + " outside [1, 1024]");
     }
   }
+  const std::vector<SparseKernelPath> paths = KernelPaths(opt.kernels);
   if (opt.threads > 0) at::set_num_threads(opt.threads);
-  const SparseBackend saved_backend = GetSparseBackend();
+  BackendRestore restore;
   SparseBenchReport rep;
+  rep.cpu_model = CpuModel();
+  rep.cpu_isa = CpuIsa();
+  rep.default_kernels = SparseKernelPathName(ResolveSparseKernelPath());
+  if (opt.sgemm) std::tie(rep.sgemm_gflops, rep.sgemm_cpu_gflops) = OneThreadSgemmGflops();
   rep.threads = at::get_num_threads();
   rep.parallel_info = at::get_parallel_info();
   at::manual_seed(static_cast<uint64_t>(opt.seed));
@@ -279,6 +378,23 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
   Voxelized vox = Voxelize(pc, pts, 1, {128, 128, 128});
   rep.room_voxels = vox.tensor.num_sites();
 
+  // Fused rows once per kernel path, then the torch-ops row.
+  struct Variant {
+    SparseBackend backend;
+    SparseKernelPath path;
+  };
+  std::vector<Variant> fused_variants;
+  for (SparseKernelPath path : paths) fused_variants.push_back({SparseBackend::kFused, path});
+  auto with_torch_ops = [&](bool torch_ops) {
+    std::vector<Variant> v = fused_variants;
+    if (torch_ops) v.push_back({SparseBackend::kTorchOps, paths.front()});
+    return v;
+  };
+  auto kernels_name = [](const Variant& v) {
+    return v.backend == SparseBackend::kFused ? std::string(SparseKernelPathName(v.path))
+                                              : std::string("torch");
+  };
+
   // --- Stage-1 U-Net on the room (first, so that the peak memory is the U-Net's).
   if (opt.unet) {
     SparseUNetConfig cfg = SparseUNetConfig::Stage1();
@@ -289,12 +405,10 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       at::Tensor point_feats = Devoxelize(y.features(), v.map);
       return std::make_pair(point_feats, y);
     };
-    const std::vector<SparseBackend> backends =
-        opt.unet_torch_ops
-            ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps}
-            : std::vector<SparseBackend>{SparseBackend::kFused};
-    for (SparseBackend be : backends) {
+    for (const Variant& var : with_torch_ops(opt.unet_torch_ops)) {
+      const SparseBackend be = var.backend;
       SetSparseBackend(be);
+      SetSparseKernelPath(var.path);
       const std::string bname = be == SparseBackend::kFused ? "fused" : "torch-ops";
       const int reps = be == SparseBackend::kFused ? opt.repeats : 1;
       net->eval();
@@ -316,6 +430,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       SparseBenchRow row;
       row.layer = "unet stage1 forward (eval, voxelise+net+devoxelise)";
       row.backend = bname;
+      row.kernels = kernels_name(var);
       row.width = cfg.widths[0];
       row.sites = rep.room_voxels;
       row.forward_ms = Median(fw);
@@ -344,6 +459,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
         SparseBenchRow tr;
         tr.layer = "unet stage1 forward+backward (train)";
         tr.backend = bname;
+        tr.kernels = row.kernels;
         tr.width = cfg.widths[0];
         tr.sites = rep.room_voxels;
         tr.forward_ms = Median(f2);
@@ -352,7 +468,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
         tr.cpu_ms = Median(cpu2);
         tr.gflops = 3.0 * flops / (tr.total_ms * 1e6);
         rep.rows.push_back(tr);
-        rep.peak_rss_mb = PeakRssMb();
+        rep.peak_rss_mb = std::max(rep.peak_rss_mb, PeakRssMb());
       }
     }
   }
@@ -370,11 +486,10 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
     at::Tensor x0 = at::randn({rep.room_voxels, c});
     at::Tensor w0 = at::randn({3, 3, 3, c, c}) * (1.0 / std::sqrt(27.0 * c));
     at::Tensor g = at::randn({rep.room_voxels, c});
-    const std::vector<SparseBackend> backends =
-        opt.torch_ops ? std::vector<SparseBackend>{SparseBackend::kFused, SparseBackend::kTorchOps}
-                      : std::vector<SparseBackend>{SparseBackend::kFused};
-    for (SparseBackend be : backends) {
+    for (const Variant& var : with_torch_ops(opt.torch_ops)) {
+      const SparseBackend be = var.backend;
       SetSparseBackend(be);
+      SetSparseKernelPath(var.path);
       // The torch-ops path is slow: one untimed warm-up and repeats for fused, one run else.
       const int warm = be == SparseBackend::kFused ? 1 : 0;
       const int runs = be == SparseBackend::kFused ? opt.repeats : 1;
@@ -397,6 +512,7 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       SparseBenchRow row;
       row.layer = "subm3 " + std::to_string(c) + "->" + std::to_string(c);
       row.backend = be == SparseBackend::kFused ? "fused" : "torch-ops";
+      row.kernels = kernels_name(var);
       row.width = c;
       row.sites = rep.room_voxels;
       row.pairs = pairs;
@@ -408,7 +524,6 @@ SparseBenchReport RunSparseBench(const SparseBenchOptions& opt) {
       rep.rows.push_back(row);
     }
   }
-  SetSparseBackend(saved_backend);
   rep.final_peak_rss_mb = PeakRssMb();
   return rep;
 }

@@ -18,27 +18,41 @@ struct Args {
   std::string json;
   bool no_torch_ops = false;
   bool no_unet = false;
+  bool no_sgemm = false;
 };
 
 void PrintReport(const dimr::nn::SparseBenchReport& r) {
+  std::printf("CPU: %s; ISA: %s; default kernel path: %s\n", r.cpu_model.c_str(), r.cpu_isa.c_str(),
+              r.default_kernels.c_str());
+  if (r.sgemm_gflops > 0) {
+    std::printf("sgemm 2048^3, one thread: %.1f GFLOP/s (%.1f over CPU time)\n", r.sgemm_gflops,
+                r.sgemm_cpu_gflops);
+  }
   std::printf("room: %lld points -> %lld voxels at 2 cm; SubM3 rulebook %.1f ms\n",
               static_cast<long long>(r.room_points), static_cast<long long>(r.room_voxels),
               r.rulebook_ms);
   std::printf("threads (at::get_num_threads): %d\n", r.threads);
-  std::printf("%-54s %-9s %8s %10s %10s %10s %8s %10s\n", "layer", "backend", "pairs", "fwd ms",
-              "bwd ms", "total ms", "GFLOP/s", "CPU ms");
+  std::printf("%-54s %-9s %-7s %8s %10s %10s %10s %8s %10s\n", "layer", "backend", "kernels",
+              "pairs", "fwd ms", "bwd ms", "total ms", "GFLOP/s", "CPU ms");
   for (const auto& row : r.rows) {
-    std::printf("%-54s %-9s %8lld %10.1f %10.1f %10.1f %8.1f %10.1f\n", row.layer.c_str(),
-                row.backend.c_str(), static_cast<long long>(row.pairs), row.forward_ms,
-                row.backward_ms, row.total_ms, row.gflops, row.cpu_ms);
+    std::printf("%-54s %-9s %-7s %8lld %10.1f %10.1f %10.1f %8.1f %10.1f\n", row.layer.c_str(),
+                row.backend.c_str(), row.kernels.c_str(), static_cast<long long>(row.pairs),
+                row.forward_ms, row.backward_ms, row.total_ms, row.gflops, row.cpu_ms);
   }
-  // Fused / torch-ops ratios of the conv rows.
+  // Fused / torch-ops ratios of the conv rows, and fused against one-thread sgemm.
   for (const auto& a : r.rows) {
     if (a.backend != "fused") continue;
     for (const auto& b : r.rows) {
       if (b.backend == "torch-ops" && b.layer == a.layer && a.total_ms > 0 && a.cpu_ms > 0) {
-        std::printf("speed-up fused vs torch-ops, %s: %.1fx wall, %.1fx CPU time\n",
-                    a.layer.c_str(), b.total_ms / a.total_ms, b.cpu_ms / a.cpu_ms);
+        std::printf("%s, %s kernels: fused %.1fx torch-ops wall (%.1fx CPU time)", a.layer.c_str(),
+                    a.kernels.c_str(), b.total_ms / a.total_ms, b.cpu_ms / a.cpu_ms);
+        if (r.sgemm_gflops > 0 && r.sgemm_cpu_gflops > 0 && a.cpu_ms > 0) {
+          // Same FLOPs over CPU time: gflops * total_ms / cpu_ms.
+          std::printf(", %.0f%% of one-thread sgemm (%.0f%% in CPU time)",
+                      100.0 * a.gflops / r.sgemm_gflops,
+                      100.0 * a.gflops * a.total_ms / a.cpu_ms / r.sgemm_cpu_gflops);
+        }
+        std::printf("\n");
       }
     }
   }
@@ -48,6 +62,11 @@ void PrintReport(const dimr::nn::SparseBenchReport& r) {
 
 void WriteJson(const dimr::nn::SparseBenchReport& r, const std::string& path) {
   nlohmann::json j;
+  j["cpu_model"] = r.cpu_model;
+  j["cpu_isa"] = r.cpu_isa;
+  j["default_kernels"] = r.default_kernels;
+  j["sgemm_gflops_one_thread"] = r.sgemm_gflops;
+  j["sgemm_cpu_gflops_one_thread"] = r.sgemm_cpu_gflops;
   j["room_points"] = r.room_points;
   j["room_voxels"] = r.room_voxels;
   j["rulebook_ms"] = r.rulebook_ms;
@@ -59,6 +78,7 @@ void WriteJson(const dimr::nn::SparseBenchReport& r, const std::string& path) {
   for (const auto& row : r.rows) {
     j["rows"].push_back({{"layer", row.layer},
                          {"backend", row.backend},
+                         {"kernels", row.kernels},
                          {"width", row.width},
                          {"sites", row.sites},
                          {"pairs", row.pairs},
@@ -85,6 +105,11 @@ void Setup(CLI::App& app) {
   app.add_option("--repeats", args->opt.repeats, "Timed runs per row (median)")
       ->check(CLI::Range(1, 100));
   app.add_option("--seed", args->opt.seed, "Room generator seed");
+  app.add_option("--kernels", args->opt.kernels,
+                 "Kernel paths of the fused rows: auto (the path in force: DIMR_SPARSE_KERNELS or "
+                 "the best this CPU has), avx512, avx2, gemm, or all (every supported path)")
+      ->delimiter(',');
+  app.add_flag("--no-sgemm", args->no_sgemm, "Skip the one-thread sgemm reference");
   app.add_flag("--no-torch-ops", args->no_torch_ops, "Skip the torch-ops rows");
   app.add_flag("--no-unet", args->no_unet, "Skip the stage-1 U-Net rows");
   app.add_flag("--unet-torch-ops", args->opt.unet_torch_ops,
@@ -93,6 +118,7 @@ void Setup(CLI::App& app) {
   app.callback([args]() {
     args->opt.torch_ops = !args->no_torch_ops;
     args->opt.unet = !args->no_unet;
+    args->opt.sgemm = !args->no_sgemm;
     const auto report = dimr::nn::RunSparseBench(args->opt);
     PrintReport(report);
     if (!args->json.empty()) WriteJson(report, args->json);

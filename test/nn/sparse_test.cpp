@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 #include <set>
@@ -118,6 +119,17 @@ class BackendGuard {
   SparseBackend old_;
 };
 
+class KernelPathGuard {
+ public:
+  explicit KernelPathGuard(SparseKernelPath p) : old_(GetSparseKernelPath()) {
+    SetSparseKernelPath(p);
+  }
+  ~KernelPathGuard() { SetSparseKernelPath(old_); }
+
+ private:
+  SparseKernelPath old_;
+};
+
 const SparseBackend kBackends[] = {SparseBackend::kFused, SparseBackend::kTorchOps};
 const char* Name(SparseBackend b) { return b == SparseBackend::kFused ? "fused" : "torch-ops"; }
 
@@ -142,23 +154,59 @@ TEST(SparseConv, SubmanifoldMatchesDenseConv3d) {
   }
 }
 
-// Widths of the direct AVX-512 kernels (output multiples of 16 up to 128; weight gradient with
-// input tiles of 16 / 8 / 4 / 2) and the GEMM fallbacks around them (an input width that is no
-// multiple of the tile, an output width that is no multiple of 16), against dense conv3d in
-// float32: value, input and weight gradients.
+// Widths of the direct kernels on every kernel path this CPU runs (AVX-512: outputs in multiples
+// of 16 up to 256 but 176 / 208, weight gradient with input tiles of 16 / 8 / 4 / 2; AVX2: 6 x 2
+// tiles in 16-column passes, 4 x 3 tiles for multiples of 48, weight-gradient channel remainders
+// of every size; GEMM: all of them), and the GEMM fallbacks around them (an input width that is no
+// multiple of the tile, an output width that is no multiple of 16, an input gradient wider than
+// the tables), against dense conv3d in float32: value, input and weight gradients.
 TEST(SparseConv, SubmanifoldAllKernelWidthsMatchDenseConv3d) {
   const Shape3 shape{9, 7, 6};
   at::Tensor coords = RandomSites(2, shape, 150, 77);
   const std::vector<std::pair<int64_t, int64_t>> widths = {
-      {16, 16}, {32, 32}, {24, 48}, {20, 64}, {12, 80}, {64, 96}, {6, 112}, {8, 128}, {32, 40}};
-  for (const auto& [cin, cout] : widths) {
-    at::Tensor x = at::randn({coords.size(0), cin});
-    at::Tensor w = at::randn({3, 3, 3, cin, cout}) * 0.2;
-    at::Tensor r = at::randn({coords.size(0), cout});
-    const Grads ref = DenseSubM3(coords, shape, x, w, r);
-    BackendGuard g(SparseBackend::kFused);
-    ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4,
-                "subm3 fused " + std::to_string(cin) + "->" + std::to_string(cout));
+      {16, 16},  {32, 32},  {24, 48},  {20, 64},  {12, 80},  {64, 96}, {6, 112}, {8, 128},
+      {32, 40},  {7, 48},   {13, 32},  {11, 144}, {5, 160},  {3, 192}, {9, 240}, {10, 256},
+      {160, 16}, {192, 16}, {224, 24}, {256, 32}, {272, 16}, {48, 176}};
+  ASSERT_FALSE(SupportedSparseKernelPaths().empty());
+  EXPECT_EQ(SupportedSparseKernelPaths().back(), SparseKernelPath::kGemm);
+  for (const SparseKernelPath path : SupportedSparseKernelPaths()) {
+    KernelPathGuard kp(path);
+    for (const auto& [cin, cout] : widths) {
+      at::Tensor x = at::randn({coords.size(0), cin});
+      at::Tensor w = at::randn({3, 3, 3, cin, cout}) * 0.2;
+      at::Tensor r = at::randn({coords.size(0), cout});
+      const Grads ref = DenseSubM3(coords, shape, x, w, r);
+      BackendGuard g(SparseBackend::kFused);
+      ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4,
+                  std::string("subm3 fused ") + SparseKernelPathName(path) + " " +
+                      std::to_string(cin) + "->" + std::to_string(cout));
+    }
+  }
+}
+
+TEST(SparseConv, KernelPathSelection) {
+  EXPECT_EQ(ParseSparseKernelPath("avx512"), SparseKernelPath::kAvx512);
+  EXPECT_EQ(ParseSparseKernelPath("avx2"), SparseKernelPath::kAvx2);
+  EXPECT_EQ(ParseSparseKernelPath("gemm"), SparseKernelPath::kGemm);
+  EXPECT_EQ(ParseSparseKernelPath("auto"), SparseKernelPath::kAuto);
+  EXPECT_THROW(ParseSparseKernelPath("sse"), InvalidArgument);
+  EXPECT_THROW(ParseSparseKernelPath("AVX2 "), InvalidArgument);
+  EXPECT_TRUE(SparseKernelPathSupported(SparseKernelPath::kGemm));
+  const std::vector<SparseKernelPath> paths = SupportedSparseKernelPaths();
+  // AVX-512 implies AVX2 + FMA on every x86 CPU that has it.
+  if (SparseKernelPathSupported(SparseKernelPath::kAvx512)) {
+    EXPECT_TRUE(SparseKernelPathSupported(SparseKernelPath::kAvx2));
+  }
+  for (SparseKernelPath p : {SparseKernelPath::kAvx512, SparseKernelPath::kAvx2}) {
+    if (!SparseKernelPathSupported(p)) {
+      EXPECT_THROW(SetSparseKernelPath(p), InvalidArgument);
+    }
+  }
+  KernelPathGuard g(SparseKernelPath::kGemm);
+  EXPECT_EQ(ResolveSparseKernelPath(), SparseKernelPath::kGemm);
+  SetSparseKernelPath(SparseKernelPath::kAuto);
+  if (std::getenv("DIMR_SPARSE_KERNELS") == nullptr) {
+    EXPECT_EQ(ResolveSparseKernelPath(), paths.front());
   }
 }
 
@@ -185,18 +233,23 @@ TEST(SparseConv, OutputStationaryBlocksAndThreadsMatchDenseConv3d) {
   const int saved_threads = at::get_num_threads();
   at::set_num_threads(2);
   BackendGuard g(SparseBackend::kFused);
-  const std::vector<std::pair<int64_t, int64_t>> widths = {{16, 32}, {64, 96}, {32, 128}, {96, 64}};
+  const std::vector<std::pair<int64_t, int64_t>> widths = {{16, 32}, {64, 96},  {32, 128},
+                                                           {96, 64}, {128, 64}, {3, 32}};
   for (const auto& [cin, cout] : widths) {
     at::Tensor x = at::randn({coords.size(0), cin});
     at::Tensor w = at::randn({3, 3, 3, cin, cout}) * 0.2;
     at::Tensor r = at::randn({coords.size(0), cout});
-    const std::string what = std::to_string(cin) + "->" + std::to_string(cout);
     const Grads ref = DenseSubM3(coords, shape, x, w, r);
-    ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4, "blocked subm3 " + what);
-    // Weight gradient only (input without grad, as for a network's first layer).
-    at::Tensor wg = w.clone().set_requires_grad(true);
-    (SubMConv3d(SparseTensor(coords, x, shape, 2), wg).features() * r).sum().backward();
-    EXPECT_LT(RelErr(wg.grad(), ref.gw), 1e-4) << "blocked subm3 weight grad only " << what;
+    for (const SparseKernelPath path : SupportedSparseKernelPaths()) {
+      KernelPathGuard kp(path);
+      const std::string what = std::string(SparseKernelPathName(path)) + " " + std::to_string(cin) +
+                               "->" + std::to_string(cout);
+      ExpectClose(SparseSubM3(coords, shape, x, w, r), ref, 1e-4, "blocked subm3 " + what);
+      // Weight gradient only (input without grad, as for a network's first layer).
+      at::Tensor wg = w.clone().set_requires_grad(true);
+      (SubMConv3d(SparseTensor(coords, x, shape, 2), wg).features() * r).sum().backward();
+      EXPECT_LT(RelErr(wg.grad(), ref.gw), 1e-4) << "blocked subm3 weight grad only " << what;
+    }
   }
   at::set_num_threads(saved_threads);
 }
@@ -335,19 +388,28 @@ TEST(SparseConv, FusedEqualsTorchOpsOnLargerInput) {
   at::Tensor w2 = at::randn({2, 2, 2, c, c}) * 0.1;
   at::Tensor wi = at::randn({2, 2, 2, c, c}) * 0.1;
   at::Tensor r = at::randn({coords.size(0), c});
-  std::vector<Grads> res;
-  for (auto be : kBackends) {
-    BackendGuard g(be);
-    res.push_back(RunWithGrad(
+  auto run = [&]() {
+    return RunWithGrad(
         [&](const at::Tensor& xf, const at::Tensor& wf) {
           SparseTensor s(coords, xf, {24, 24, 24}, 2);
           SparseTensor a = SubMConv3d(s, wf);
           SparseTensor d = SparseConv3dDown(a, w2);
           return SparseInverseConv3d(SubMConv3d(d, wf), wi).features();
         },
-        x, w3, r));
+        x, w3, r);
+  };
+  Grads ref;
+  {
+    BackendGuard g(SparseBackend::kTorchOps);
+    ref = run();
   }
-  ExpectClose(res[0], res[1], 1e-5, "fused vs torch-ops");
+  // Down / inverse convs run the direct kernels offset-major (width 32 on every path).
+  for (const SparseKernelPath path : SupportedSparseKernelPaths()) {
+    BackendGuard g(SparseBackend::kFused);
+    KernelPathGuard kp(path);
+    ExpectClose(run(), ref, 1e-5,
+                std::string("fused ") + SparseKernelPathName(path) + " vs torch-ops");
+  }
 }
 
 TEST(SparseConv, FiniteDifferenceGradients) {

@@ -32,12 +32,17 @@ struct SparseBenchOptions {
   bool unet = true;                             // time the stage-1 U-Net
   bool unet_backward = true;                    // ... and its forward + backward
   bool unet_torch_ops = false;  // also time the U-Net forward on the torch-ops path (slow)
+  // Kernel paths of the fused rows: "auto" (the path in force), "avx512", "avx2", "gemm" or
+  // "all" (every path this CPU supports); each fused row runs once per path.
+  std::vector<std::string> kernels{"auto"};
+  bool sgemm = true;  // measure one-thread sgemm (2048^3) for reference
   uint64_t seed = 1;
 };
 
 struct SparseBenchRow {
   std::string layer;    // e.g. "subm3 64->64", "unet stage1 forward (eval)"
   std::string backend;  // "fused" / "torch-ops"
+  std::string kernels;  // fused: kernel path ("avx512", "avx2", "gemm"); torch-ops: "torch"
   int64_t width = 0;
   int64_t sites = 0;
   int64_t pairs = 0;       // rulebook pairs (conv rows) or 0
@@ -52,6 +57,12 @@ struct SparseBenchRow {
 
 struct SparseBenchReport {
   std::vector<SparseBenchRow> rows;
+  std::string cpu_model;        // /proc/cpuinfo model name, family and model
+  std::string cpu_isa;          // vector ISA the CPU reports, e.g. "avx512f avx2 fma"
+  std::string default_kernels;  // the kernel path a plain run takes
+  double sgemm_gflops = 0;      // one-thread at::mm 2048 x 2048 x 2048, median of 3 (0: skipped)
+  double sgemm_cpu_gflops =
+      0;            // the same over process CPU time (less inflated on a loaded machine)
   int threads = 0;  // at::get_num_threads() during the run
   std::string parallel_info;
   int64_t room_points = 0;

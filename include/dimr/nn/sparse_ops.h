@@ -9,6 +9,7 @@
 #include <ATen/ATen.h>
 
 #include <array>
+#include <string>
 #include <vector>
 
 #include "dimr/nn/sparse_tensor.h"
@@ -22,6 +23,26 @@ void SetSparseBackend(SparseBackend backend);
 SparseBackend GetSparseBackend();
 // The backend actually used for tensors on `device`.
 SparseBackend ResolveSparseBackend(const at::Device& device);
+
+// Kernel path of the fused backend's float convolutions (docs/sparse.md "Kernels"): direct
+// register-tiled kernels for AVX-512 or AVX2 + FMA, or gather-GEMM-scatter (any CPU, and every
+// width / dtype the direct kernels do not cover). kAuto = the environment variable
+// DIMR_SPARSE_KERNELS (avx512 | avx2 | gemm | auto) when set, else the best the CPU supports:
+// AVX-512 -> AVX2 + FMA -> GEMM.
+enum class SparseKernelPath { kAuto, kAvx512, kAvx2, kGemm };
+
+// Process-wide override (tests, benchmarks). Forcing a path this CPU cannot run throws
+// dimr::InvalidArgument (here, and at the next convolution when it came from the environment).
+void SetSparseKernelPath(SparseKernelPath path);
+SparseKernelPath GetSparseKernelPath();
+// The path the next fused float convolution takes (never kAuto).
+SparseKernelPath ResolveSparseKernelPath();
+bool SparseKernelPathSupported(SparseKernelPath path);
+// "auto", "avx512", "avx2", "gemm"; Parse throws dimr::InvalidArgument on other names.
+const char* SparseKernelPathName(SparseKernelPath path);
+SparseKernelPath ParseSparseKernelPath(const std::string& name);
+// The paths this CPU can run, best first (always ends with kGemm).
+std::vector<SparseKernelPath> SupportedSparseKernelPaths();
 
 // Rulebook convolution on feature rows: out[o] += in[i] * W[k] for every pair (i, o) of
 // offset k (transpose: pairs are used reversed, out[i] += in[o] * W[k]).
