@@ -13,6 +13,7 @@ PACKAGES=(
   libnodeletlib-dev libnodeletlib-tools
   libtf2-ros-dev libtf2-eigen-dev libtf2-sensor-msgs-dev tf2-tools
   libpcl-conversions-dev libpcl-dev liboctomap-dev
+  libdiagnostic-updater-dev libpcl-ros-dev   # node diagnostics; pcl_ros filter nodelets (launch option)
   # core libraries
   libeigen3-dev libembree-dev nlohmann-json3-dev libyaml-cpp-dev libcli11-dev zlib1g-dev
   # LibTorch (CPU) + a fast BLAS for it (see docs/ros-build.md, BLAS section)

@@ -12,7 +12,8 @@
 
 #include "dimr/data/scanner.h"
 
-// Namespace `ros1`, not `ros`: a dimr::ros would shadow ::ros inside dimr (ros::Time, ros::NodeHandle).
+// Namespace `ros1`, not `ros`: a dimr::ros would shadow ::ros inside dimr (ros::Time,
+// ros::NodeHandle).
 namespace dimr::ros1 {
 
 struct BagWriterOptions {
