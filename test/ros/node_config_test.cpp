@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "dimr/geometry/error.h"
+#include "dimr/ros/node_params.h"
 
 namespace dimr::ros1 {
 namespace {
@@ -54,9 +55,11 @@ TEST(NodeConfig, DocsListEveryParameter) {
   for (auto it = std::sregex_iterator(doc.begin(), doc.end(), row); it != std::sregex_iterator();
        ++it)
     documented.insert((*it)[1]);
-  NodeConfig c;
+  NodeParams c;
+  PipelineParamText text;
   ParamTable t;
-  DeclareNodeParams(&c, &t);
+  DeclareNodeParams(&c.node, &t);
+  DeclarePipelineParams(&c.pipeline, &text, &t);
   for (const ParamEntry& e : t.entries()) {
     EXPECT_TRUE(documented.count(e.name)) << "not in docs/ros.md: " << e.name;
     // The documented default is the code's default.
@@ -71,9 +74,7 @@ TEST(NodeConfig, DocsListEveryParameter) {
         << e.name << ": default " << value << " not in: " << line;
   }
   for (const std::string& d : documented)
-    if (d.rfind("pipeline/", 0) != 0) {
-      EXPECT_TRUE(t.Find(d)) << "documented but not declared: " << d;
-    }
+    EXPECT_TRUE(t.Find(d)) << "documented, not declared: " << d;
 }
 
 void ExpectReadError(const std::string& yaml, const std::string& needle) {
@@ -132,6 +133,55 @@ TEST(NodeConfig, ValidateCombinations) {
   c = NodeConfig();
   c.scans.max_extent = 0.05;
   EXPECT_THROW(c.Validate(), InvalidArgument);
+}
+
+TEST(NodeParams, DefaultYamlHasEveryParameterAndNothingElse) {
+  const auto src = YamlParamSource(kSource + "/config/default.yaml");
+  const ReadResult r = ReadNodeParams(*src, "/opt/pkg");
+  EXPECT_TRUE(r.unknown_keys.empty()) << r.unknown_keys.front();
+  std::set<std::string> keys;
+  for (const std::string& k : src->Keys()) keys.insert(k);
+  for (const std::string& n : DeclaredParamNames()) EXPECT_TRUE(keys.count(n)) << n;
+  EXPECT_EQ(keys.size(), DeclaredParamNames().size());
+  // Defaults of the pipeline config are the documented ones; relative paths resolved.
+  const pipeline::ReconstructorConfig def;
+  EXPECT_EQ(r.params.pipeline.stage1_model, "/opt/pkg/" + def.stage1_model);
+  EXPECT_EQ(r.params.pipeline.pool, "/opt/pkg/" + def.pool);
+  EXPECT_EQ(r.params.pipeline.pool_meshes, "");
+  EXPECT_EQ(r.params.pipeline.k, def.k);
+  EXPECT_DOUBLE_EQ(r.params.pipeline.score_threshold, def.score_threshold);
+  EXPECT_EQ(r.params.pipeline.icp.samples, def.icp.samples);
+  EXPECT_EQ(r.params.pipeline.preset, def.preset);
+  EXPECT_EQ(r.params.pipeline.mode, def.mode);
+  EXPECT_NE(r.resolved.find("pipeline/icp/max_tilt_deg: 10"), std::string::npos);
+}
+
+TEST(NodeParams, PipelineValuesAndErrors) {
+  const ReadResult r = ReadNodeParams(
+      *YamlParamSourceFromString("pipeline: {mode: retrieval, preset: fast, k: 4, pool: /p.bin,"
+                                 " icp: {enabled: false}}\nmax_input_points: 5000000\n",
+                                 "t.yaml"),
+      "");
+  EXPECT_EQ(r.params.pipeline.mode, pipeline::ReconstructionMode::kRetrieval);
+  EXPECT_EQ(r.params.pipeline.preset, pipeline::ReconstructionPreset::kFast);
+  EXPECT_EQ(r.params.pipeline.k, 4);
+  EXPECT_EQ(r.params.pipeline.pool, "/p.bin");
+  EXPECT_FALSE(r.params.pipeline.icp.enabled);
+  EXPECT_GE(r.params.pipeline.max_points, 5000000u);  // never below what the node hands over
+  EXPECT_FALSE(r.params.pipeline.crop);
+  auto bad = [](const std::string& yaml, const std::string& needle) {
+    try {
+      ReadNodeParams(*YamlParamSourceFromString(yaml, "bad.yaml"), "");
+      ADD_FAILURE() << yaml;
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  bad("pipeline: {mode: sculpt}", "pipeline/mode");
+  bad("pipeline: {k: 0}", "pipeline/k");
+  bad("pipeline: {stage1_model: \"\"}", "must not be empty");
+  bad("pipeline: {icp: {max_tilt_deg: 95}}", "pipeline/icp/max_tilt_deg");
+  bad("pipeline: {nms_iou: high}", "expected a number");
 }
 
 TEST(ParamTable, DuplicateDeclarationAndRangeText) {
