@@ -615,7 +615,7 @@ TEST_F(NodeTest, CropBoxRemovingEverythingIsNamed) {
 
 TEST_F(NodeTest, BurstAt50HzWhileInferenceRunsStaysResponsive) {
   Start("burst", false);
-  ctl_.delay_ms = 400;  // "inference" takes 0.4 s
+  ctl_.delay_ms = 1000;  // "inference" takes 1 s
   const int calls_before = ctl_.calls;
   const auto msg = Boxes("sensor", ros::Time::now());
   ros::WallRate rate(50.0);
@@ -632,13 +632,13 @@ TEST_F(NodeTest, BurstAt50HzWhileInferenceRunsStaysResponsive) {
     }
     rate.sleep();
   }
-  ros::WallDuration(1.0).sleep();
+  ros::WallDuration(1.2).sleep();
   ctl_.delay_ms = 0;
   const int calls = ctl_.calls - calls_before;
-  EXPECT_LE(calls, 12) << "newest-cloud-wins: about 3 s / 0.4 s inferences, not 100";
-  EXPECT_GE(calls, 3);
+  EXPECT_LE(calls, 5) << "newest-cloud-wins: about 3 s / 1 s inferences, not 100";
+  EXPECT_GE(calls, 2);
   EXPECT_GT(DiagInt("queue_drops"), 70);
-  EXPECT_LT(worst_service, 0.25) << "a service waited for inference";
+  EXPECT_LT(worst_service, 0.5) << "a service waited for inference (1 s)";
   const double cb = std::stod(Diag("max_callback_ms"));
   EXPECT_LT(cb, 50.0) << "the cloud callback blocked";
   RecordProperty("worst_service_s", std::to_string(worst_service));
