@@ -19,7 +19,9 @@
 #include <random>
 
 #include "box_backend.h"
+#include "dimr/ros/node_params.h"
 #include "dimr/ros/reconstruction_node.h"
+#include "dimr/ros/ros_param_source.h"
 
 namespace dimr::ros1 {
 namespace {
@@ -646,6 +648,60 @@ TEST_F(NodeTest, BurstAt50HzWhileInferenceRunsStaysResponsive) {
   std::printf(
       "burst: %d inferences for 100 clouds, worst get_scene %.1f ms, max callback %.2f ms\n", calls,
       1000 * worst_service, cb);
+}
+
+TEST(RosParams, ReadValidatedWithUnknownKeysFromTheParameterServer) {
+  ros::NodeHandle pnh("/params_ok/dimr");
+  pnh.setParam("fixed_frame", "odom");
+  pnh.setParam("association/min_iou", 0.4);
+  pnh.setParam("tf_timeout", 1);  // an int where a double is declared: accepted
+  std::vector<double> lo = {-5, -5, -1};
+  pnh.setParam("crop_box/min", lo);
+  pnh.setParam("pipeline/mode", "projection");
+  pnh.setParam("pipeline/k", 3);
+  pnh.setParam("visualisation/alpha", 0.5);  // misspelt
+  const ReadResult r = ReadNodeParams(RosParamSource(pnh), "/pkg");
+  EXPECT_EQ(r.params.node.fixed_frame, "odom");
+  EXPECT_DOUBLE_EQ(r.params.node.association.min_iou, 0.4);
+  EXPECT_DOUBLE_EQ(r.params.node.tf_timeout, 1.0);
+  EXPECT_DOUBLE_EQ(r.params.node.crop_min[2], -1.0);
+  EXPECT_EQ(r.params.pipeline.mode, pipeline::ReconstructionMode::kProjection);
+  EXPECT_EQ(r.params.pipeline.k, 3);
+  EXPECT_EQ(r.params.pipeline.bsp_model, "/pkg/models/bsp/bsp.pt");
+  EXPECT_EQ(r.unknown_keys, (std::vector<std::string>{"visualisation/alpha"}));
+
+  auto fails = [](const std::string& ns, const std::string& key, const auto& value,
+                  const std::string& needle) {
+    ros::NodeHandle p(ns);
+    p.setParam(key, value);
+    try {
+      ReadNodeParams(RosParamSource(p), "");
+      ADD_FAILURE() << key;
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(ns), std::string::npos) << e.what();
+    }
+  };
+  fails("/params_bad1/dimr", "tf_timeout", std::string("soon"), "expected a number");
+  fails("/params_bad2/dimr", "tf_queue_size", 2.5, "expected an integer");
+  fails("/params_bad3/dimr", "input_mode", std::string("stream"), "not one of");
+  fails("/params_bad4/dimr", "max_publish_rate", 1000.0, "outside");
+  fails("/params_bad5/dimr", "fixed_frame", std::string("/map"), "leading slash");
+  fails("/params_bad6/dimr", "pipeline/preset", std::string("turbo"), "pipeline/preset");
+}
+
+TEST(RosParams, NodeRefusesAnInvalidConfig) {
+  BoxBackendControl ctl;
+  NodeConfig c;
+  c.crop_min = {0, 0, 0};
+  c.crop_max = {0, 1, 1};
+  EXPECT_THROW(
+      ReconstructionNode(ros::NodeHandle("/bad_cfg"), ros::NodeHandle("/bad_cfg/dimr"), c,
+                         std::make_unique<BoxBackend>(false, &ctl), ShapeMode::kGeneration, 1),
+      InvalidArgument);
+  EXPECT_THROW(ReconstructionNode(ros::NodeHandle("/bad_cfg"), ros::NodeHandle("/bad_cfg/dimr"),
+                                  NodeConfig(), nullptr, ShapeMode::kGeneration, 1),
+               InvalidArgument);
 }
 
 }  // namespace
