@@ -1,5 +1,7 @@
 #include "dimr/pipeline/clustering.h"
 
+#include <immintrin.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -87,6 +89,26 @@ class BallQuery {
       ++cells_.back().unvisited;
       cell_of_[k] = static_cast<int>(cells_.size()) - 1;
     }
+    // The occupied cells among each cell's 27 (itself included), looked up once per cell
+    // instead of 27 hash probes per query (a query point is always a labelled point, whose cell
+    // is known).
+    near_begin_.reserve(cells_.size() + 1);
+    near_begin_.push_back(0);
+    std::size_t first = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i + 1 < n && keyed[i + 1].first == keyed[i].first) continue;
+      const CellKey c = keyed[first].first;
+      first = i + 1;
+      for (std::int64_t dx = -1; dx <= 1; ++dx) {
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+          for (std::int64_t dz = -1; dz <= 1; ++dz) {
+            const auto it = index_.find({c.x + dx, c.y + dy, c.z + dz});
+            if (it != index_.end()) near_.push_back(it->second);
+          }
+        }
+      }
+      near_begin_.push_back(static_cast<int>(near_.size()));
+    }
   }
 
   bool visited(int k) const { return visited_[k] != 0; }
@@ -95,27 +117,18 @@ class BallQuery {
     --cells_[cell_of_[k]].unvisited;
   }
 
-  // The neighbours of labelled point j that may still matter to the BFS: all labelled k with
+  // The neighbours of labelled point j (at p) that may still matter to the BFS: all labelled k with
   // |x_j - x_k|^2 < r^2 (float), in arbitrary order, not yet truncated to the cap. Returns
   // false (without the full scan) if no unvisited point can be among j's first `cap`
   // neighbours in index order: every point of the 27 cells is visited, or `cap` neighbours
   // have a smaller index than the smallest unvisited one.
-  bool Query(const Eigen::Vector3f& p, std::vector<int>* hits) {
+  bool Query(int j, const Eigen::Vector3f& p, std::vector<int>* hits) {
     hits->clear();
-    const CellKey c = Key(p);
-    int near[27];
-    int num_near = 0;
+    const int cj = cell_of_[j];
+    const int* near = near_.data() + near_begin_[cj];
+    const int num_near = near_begin_[cj + 1] - near_begin_[cj];
     int unvisited = 0;
-    for (std::int64_t dx = -1; dx <= 1; ++dx) {
-      for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dz = -1; dz <= 1; ++dz) {
-          const auto it = index_.find({c.x + dx, c.y + dy, c.z + dz});
-          if (it == index_.end()) continue;
-          near[num_near++] = it->second;
-          unvisited += cells_[it->second].unvisited;
-        }
-      }
-    }
+    for (int n = 0; n < num_near; ++n) unvisited += cells_[near[n]].unvisited;
     if (unvisited == 0) return false;
     // Smallest unvisited index around j (each cell's first-unvisited slot only moves forward).
     int min_unvisited = std::numeric_limits<int>::max();
@@ -135,20 +148,21 @@ class BallQuery {
     const float px = p.x(), py = p.y(), pz = p.z();
     std::size_t count = 0;
     // Phase 1: the points below min_unvisited (a prefix of every cell). If they alone fill
-    // the cap, no unvisited point is a neighbour of j.
+    // the cap, no unvisited point is a neighbour of j (stop as soon as it is reached).
     int split[27];
     for (int n = 0; n < num_near; ++n) {
       const Cell& cell = cells_[near[n]];
-      int s = cell.begin;
-      for (; s < cell.end && order_[s] < min_unvisited; ++s)
-        count += Hit(px, py, pz, s, out + count);
+      // Indices ascend inside a cell: the prefix below min_unvisited by binary search.
+      const int s = static_cast<int>(
+          std::lower_bound(order_.begin() + cell.begin, order_.begin() + cell.end, min_unvisited) -
+          order_.begin());
       split[n] = s;
+      count = Hits(px, py, pz, cell.begin, s, out, count, cap_);
+      if (count >= cap_) return false;
     }
-    if (count >= cap_) return false;
     // Phase 2: the rest.
     for (int n = 0; n < num_near; ++n) {
-      const int end = cells_[near[n]].end;
-      for (int s = split[n]; s < end; ++s) count += Hit(px, py, pz, s, out + count);
+      count = Hits(px, py, pz, split[n], cells_[near[n]].end, out, count, kNoStop);
     }
     hits->resize(count);
     return true;
@@ -172,6 +186,34 @@ class BallQuery {
     return d2 < r2_ ? 1 : 0;
   }
 
+  static constexpr std::size_t kNoStop = std::numeric_limits<std::size_t>::max();
+
+  // Hit over the slots [s0, s1): appends the indices within the radius to out + count in slot
+  // order and returns the new count, stopping early once it reaches `stop`. Four slots at a
+  // time with SSE2 (the same float operations in the same order as Hit, so the same hits).
+  std::size_t Hits(float px, float py, float pz, int s0, int s1, int* out, std::size_t count,
+                   std::size_t stop) const {
+    const __m128 qx = _mm_set1_ps(px), qy = _mm_set1_ps(py), qz = _mm_set1_ps(pz);
+    const __m128 r2 = _mm_set1_ps(r2_);
+    int s = s0;
+    for (; s + 4 <= s1; s += 4) {
+      const __m128 ex = _mm_sub_ps(qx, _mm_loadu_ps(&xs_[s]));
+      const __m128 ey = _mm_sub_ps(qy, _mm_loadu_ps(&ys_[s]));
+      const __m128 ez = _mm_sub_ps(qz, _mm_loadu_ps(&zs_[s]));
+      const __m128 d2 =
+          _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ex), _mm_mul_ps(ey, ey)), _mm_mul_ps(ez, ez));
+      const unsigned m = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(d2, r2)));
+      // Branch-free compaction (hits are dense in the shifted passes: a bit loop mispredicts).
+      for (int b = 0; b < 4; ++b) {
+        out[count] = order_[s + b];
+        count += (m >> b) & 1u;
+      }
+      if (count >= stop) return count;
+    }
+    for (; s < s1; ++s) count += Hit(px, py, pz, s, out + count);
+    return count;
+  }
+
   CellKey Key(const Eigen::Vector3f& p) const {
     return {static_cast<std::int64_t>(std::floor(static_cast<double>(p.x()) * inv_cell_)),
             static_cast<std::int64_t>(std::floor(static_cast<double>(p.y()) * inv_cell_)),
@@ -187,6 +229,8 @@ class BallQuery {
   std::vector<int> cell_of_;         // per point: its cell, -1 if unlabelled
   std::vector<Cell> cells_;
   std::unordered_map<CellKey, int, CellKeyHash> index_;
+  std::vector<int> near_;        // per cell: its occupied neighbour cells (CSR)
+  std::vector<int> near_begin_;  // cells_.size() + 1
 };
 
 void CheckClusterArgs(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& labels,
@@ -262,7 +306,7 @@ std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& po
     // `cluster` doubles as the FIFO queue: pop order == push order.
     for (std::size_t head = 0; head < cluster.size(); ++head) {
       const int j = cluster[head];
-      if (!query.Query(points[j], &hits)) continue;
+      if (!query.Query(j, points[j], &hits)) continue;
       fresh.clear();
       int min_fresh = std::numeric_limits<int>::max();
       for (int k : hits) {
