@@ -309,10 +309,15 @@ void ReconstructionNode::Process(const Job& job) {
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (pending_mode_ >= 0) {
-      backend_->SetMode(static_cast<ShapeMode>(pending_mode_), pending_k_);
-      mode_ = pending_mode_;
-      projection_k_ = pending_k_;
-      pending_mode_ = -1;
+      const int mode = pending_mode_, k = pending_k_;
+      pending_mode_ = -1;  // applied once, also when the backend refuses it
+      try {
+        backend_->SetMode(static_cast<ShapeMode>(mode), k);
+        mode_ = mode;
+        projection_k_ = k;
+      } catch (const Error& e) {
+        NoteIssue("set_mode_failed", e.what());
+      }
     }
   }
   const sensor_msgs::PointCloud2& msg = *job.msg;
@@ -459,10 +464,10 @@ bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res
         "unknown mode " + std::to_string(req.mode) + " (0 generation, 1 projection, 2 retrieval)";
     return true;
   }
-  if (req.mode != SetMode::Request::GENERATION && !has_pool_) {
+  std::string why;
+  if (!backend_->SupportsMode(static_cast<ShapeMode>(req.mode), &why)) {
     res.success = false;
-    res.message = std::string(ModeName(req.mode)) +
-                  " needs a CAD pool and none is loaded (parameter pipeline/pool)";
+    res.message = std::string(ModeName(req.mode)) + " is not available: " + why;
     return true;
   }
   const int k = req.projection_k == 0 ? projection_k_ : req.projection_k;

@@ -55,6 +55,9 @@ class SceneBackend {
   // Throws dimr::InvalidArgument when projection / retrieval is asked without a pool.
   virtual void SetMode(ShapeMode mode, int k) = 0;
   virtual bool has_pool() const = 0;
+  // Whether SetMode(mode) would succeed; otherwise `why` says what is missing (e.g. no pool,
+  // or retrieval without pool meshes). Thread-safe.
+  virtual bool SupportsMode(ShapeMode mode, std::string* why) const = 0;
   virtual std::string model_version() const = 0;  // weights id (SceneMeshes.model_version)
   virtual std::string pool_id() const = 0;        // "" without a pool
   // A pool model's mesh in its canonical frame (get_pool_model); false when unknown.

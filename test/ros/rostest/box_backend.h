@@ -104,6 +104,11 @@ class BoxBackend : public SceneBackend {
     k_ = k;
   }
   bool has_pool() const override { return pool_; }
+  bool SupportsMode(ShapeMode mode, std::string* why) const override {
+    if (mode == ShapeMode::kGeneration || pool_) return true;
+    *why = "no CAD pool is loaded (parameter pipeline/pool)";
+    return false;
+  }
   std::string model_version() const override { return "box-test"; }
   std::string pool_id() const override { return pool_ ? "box-pool" : ""; }
   bool PoolModel(const std::string& id, geometry::TriangleMesh* mesh,
