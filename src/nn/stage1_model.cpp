@@ -516,18 +516,28 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
         // A heading h of the input is sign * h (+ pi if mirrored) + theta in the moved scene:
         // bin b here is bin (m * 6 + sign * b + shift) there, residual times sign.
         const int shift = kHeadingBins * k / rotations;
+        // The bin map of this pass, once (two integer divisions per point and bin before).
+        int to[kHeadingBins];
+        for (int b = 0; b < kHeadingBins; ++b) {
+          to[b] =
+              ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
+              kHeadingBins;
+        }
+        const float fsign = static_cast<float>(sign);
         for (std::size_t i = 0; i < n; ++i) {
-          for (int j = 0; j < nc; ++j) out.semantic_prob[i * nc + j] += rp[i * nc + j];
+          float* sp = out.semantic_prob.data() + i * nc;
+          const float* rpi = rp + i * nc;
+          for (int j = 0; j < nc; ++j) sp[j] += rpi[j];
           const Eigen::Vector3f o(ro[3 * i], ro[3 * i + 1], ro[3 * i + 2]);
           out.offsets[i] += Eigen::Vector3f(static_cast<float>(sign * (c * o.x() + s * o.y())),
                                             static_cast<float>(-s * o.x() + c * o.y()), o.z());
+          float* hp = out.heading_prob.data() + i * kHeadingBins;
+          float* hres = out.heading_residual.data() + i * kHeadingBins;
+          const float* rhbi = rhb + i * kHeadingBins;
+          const float* rhri = rhr + i * kHeadingBins;
           for (int b = 0; b < kHeadingBins; ++b) {
-            const int to =
-                ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
-                kHeadingBins;
-            const std::size_t from = i * kHeadingBins + static_cast<std::size_t>(to);
-            out.heading_prob[i * kHeadingBins + b] += rhb[from];
-            out.heading_residual[i * kHeadingBins + b] += static_cast<float>(sign) * rhr[from];
+            hp[b] += rhbi[to[b]];
+            hres[b] += fsign * rhri[to[b]];
           }
         }
         t.heads_ms += Ms(t0, std::chrono::steady_clock::now());
