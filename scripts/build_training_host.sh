@@ -1,10 +1,12 @@
 #!/usr/bin/env bash
 # Builds the `dimr` command on a training host that has only a PyTorch install (its bundled
 # LibTorch, CPU or CUDA), a C++17 compiler and CMake: no ROS, no PCL, no apt packages.
-# Header-only dependencies (Eigen, CLI11, nlohmann-json; GoogleTest for the tests) are taken
-# from $DIMR_DEPS_PREFIX if set (a prefix with include/ and share/ or lib/cmake), else from
-# the system. Layers whose dependencies are missing (data, ros) are skipped, and so are the
-# `dimr` subcommands that need them. Output: build-host/bin/dimr.
+# Header-only dependencies (Eigen, CLI11, nlohmann-json; GoogleTest for the tests) and yaml-cpp
+# (model cards: the pipeline layer, and with it `dimr train bsp`, needs it) are taken from
+# $DIMR_DEPS_PREFIX if set (a prefix with include/ and share/ or lib/cmake, e.g. the .devdeps/ of
+# scripts/device/prepare_deps.sh), else from the system. Layers whose dependencies are missing
+# (data, ros; pipeline without yaml-cpp) are skipped, and so are the `dimr` subcommands that
+# need them. Output: build-host/bin/dimr.
 #   scripts/build_training_host.sh [--tests]
 set -eo pipefail
 REPO=$(cd "$(dirname "$0")/.." && pwd)

@@ -1,43 +1,20 @@
 #include "tools/bsp_options.h"
 
 #include <CLI/CLI.hpp>
-#include <cmath>
-#include <optional>
-#include <stdexcept>
 
 #include "dimr/geometry/error.h"
+#include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
-#include "tools/model_card.h"
 
 namespace dimr::tools {
-namespace {
-
-float ResolveCardValue(const std::string& model_path, const char* key, float requested) {
-  if (requested >= 0.0f) return requested;
-  const std::optional<std::string> value = ReadModelCardValue(model_path, key);
-  if (!value) return 0.0f;
-  try {
-    std::size_t used = 0;
-    const float d = std::stof(*value, &used);
-    if (!std::isfinite(d) || d < 0.0f) throw std::invalid_argument("negative");
-    if (used != value->size()) throw std::invalid_argument("trailing text");
-    return d;
-  } catch (const std::exception&) {
-    throw ParseError(ModelCardPath(model_path),
-                     std::string(key) + " must be a number >= 0, got '" + *value + "'");
-  }
-}
-
-}  // namespace
 
 BspDilation ApplyBspDilation(const std::string& model_path, const BspDilation& requested,
                              pipeline::BspMeshOptions* options) {
-  BspDilation d;
-  d.plane = ResolveCardValue(model_path, "recommended_dilation", requested.plane);
-  d.distance = ResolveCardValue(model_path, "recommended_distance_dilation", requested.distance);
-  options->dilation = d.plane;
-  options->distance_dilation = d.distance;
-  return d;
+  const pipeline::BspMeshOptions card =
+      pipeline::BspDecodingOptions(model_path, {requested.plane, requested.distance});
+  options->dilation = card.dilation;
+  options->distance_dilation = card.distance_dilation;
+  return {card.dilation, card.distance_dilation};
 }
 
 void AddBspDilationOption(CLI::App& app, BspDilation* dilation) {

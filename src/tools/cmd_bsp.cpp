@@ -2,7 +2,6 @@
 // `dimr encode-pool`, `dimr bench bsp`. Needs the nn and pipeline layers (LibTorch).
 #if defined(DIMR_HAVE_NN) && defined(DIMR_HAVE_PIPELINE)
 #include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,9 +11,12 @@
 #include <unordered_map>
 #include <vector>
 
+#include "dimr/core/labels.h"
+#include "dimr/core/timing.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/ply_io.h"
 #include "dimr/nn/bsp_model.h"
+#include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/shape_pool.h"
 #include "tools/bsp_options.h"
@@ -24,8 +26,11 @@
 namespace dimr::tools {
 namespace {
 
-const char* kClassNames[8] = {"table",     "chair",   "bookshelf", "sofa",
-                              "trash_bin", "cabinet", "display",   "bathtub"};
+// The decoder of a command: the model's weights, decoded with the requested dilations (a
+// negative one: the model card's).
+pipeline::BspDecoder LoadDecoder(const std::string& model_path, const BspDilation& dilation) {
+  return pipeline::BspDecoder::Load(model_path, {dilation.plane, dilation.distance});
+}
 
 // ---------------------------------------------------------------- train
 struct TrainArgs {
@@ -97,7 +102,10 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "architecture: \"" << model.config().ToString() << "\"\n";
   y << "parameters: " << model.NumParameters() << "\n";
   y << "phase: " << model.phase() << "\n";
-  y << "label_set: [table, chair, bookshelf, sofa, trash_bin, cabinet, display, bathtub]\n";
+  y << "label_set: [";
+  for (int c = 0; c < labels::kNumCadClasses; ++c)
+    y << (c ? ", " : "") << labels::CadClassNames()[c];
+  y << "]\n";
   y << "training:\n";
   y << "  command: \"" << command << "\"\n";
   y << "  seed: " << a.seed << "\n";
@@ -250,16 +258,15 @@ struct EvalArgs {
 };
 
 void RunEval(const EvalArgs& a) {
-  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const pipeline::BspDecoder decoder = LoadDecoder(a.model, a.dilation);
+  const nn::BspModel& model = decoder.model();
   nn::BspDataset data = nn::BspDataset::Load(a.data);
   if (a.limit > 0 && data.samples.size() > static_cast<std::size_t>(a.limit)) {
     data.samples.resize(static_cast<std::size_t>(a.limit));
   }
   const Eigen::MatrixXf codes = model.EncodeAll(data);
-  const auto convexes = model.ConvexPlanes();
-  pipeline::BspMeshOptions mopt;
-  const BspDilation dilation = tools::ApplyBspDilation(a.model, a.dilation, &mopt);
-  std::printf("dilation %.3g, distance dilation %.3g\n", dilation.plane, dilation.distance);
+  std::printf("dilation %.3g, distance dilation %.3g\n", decoder.mesh_options().dilation,
+              decoder.mesh_options().distance_dilation);
   const int R = data.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
   std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
@@ -269,18 +276,18 @@ void RunEval(const EvalArgs& a) {
     const auto& sample = data.samples[s];
     Eigen::VectorXf mu = codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
     if (a.refine_steps > 0) mu = model.RefineLatent(mu, sample, a.refine_steps, a.refine_lr).mu;
-    const Eigen::MatrixXf planes = model.DecodePlanes(mu, sample.cad_class);
-    const auto occ = pipeline::BspOccupancy(planes, convexes, centers, mopt);
+    const Eigen::MatrixXf planes = decoder.Planes(mu, sample.cad_class);
+    const auto occ = decoder.OccupancyFromPlanes(planes, centers);
     const auto& target = sample.iou_grid.empty() ? sample.grid : sample.iou_grid;
-    const pipeline::BspMeshResult mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
+    const pipeline::BspMeshResult mesh = decoder.MeshFromPlanes(planes);
     const int c = sample.cad_class;
     iou_sum[c] += pipeline::OccupancyIoU(occ, target);
     faces_sum[c] += static_cast<double>(mesh.mesh.faces.size());
     convex_sum[c] += static_cast<double>(mesh.kept_convexes.size());
     ++n[c];
     if (!a.mesh_dir.empty()) {
-      geometry::WritePly(a.mesh_dir + "/" + std::to_string(s) + "_" + kClassNames[c] + "_" +
-                             sample.model_id + ".ply",
+      geometry::WritePly(a.mesh_dir + "/" + std::to_string(s) + "_" + labels::CadClassNames()[c] +
+                             "_" + sample.model_id + ".ply",
                          mesh.mesh);
     }
     std::fprintf(stderr, "\reval: %zu/%zu", s + 1, data.samples.size());
@@ -291,8 +298,8 @@ void RunEval(const EvalArgs& a) {
   int count = 0;
   for (int c = 0; c < 8; ++c) {
     if (!n[c]) continue;
-    std::printf("| %s | %d | %.4f | %.1f | %.0f |\n", kClassNames[c], n[c], iou_sum[c] / n[c],
-                convex_sum[c] / n[c], faces_sum[c] / n[c]);
+    std::printf("| %s | %d | %.4f | %.1f | %.0f |\n", labels::CadClassNames()[c], n[c],
+                iou_sum[c] / n[c], convex_sum[c] / n[c], faces_sum[c] / n[c]);
     total += iou_sum[c];
     count += n[c];
   }
@@ -348,7 +355,8 @@ struct InterpArgs {
 };
 
 void RunInterpolate(const InterpArgs& a) {
-  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const pipeline::BspDecoder decoder = LoadDecoder(a.model, a.dilation);
+  const int L = decoder.latent_dim();
   const nn::BspDataset data = nn::BspDataset::Load(a.data);
   if (a.a < 0 || a.b < 0 || static_cast<std::size_t>(std::max(a.a, a.b)) >= data.samples.size()) {
     throw InvalidArgument("--a/--b out of range (dataset has " +
@@ -357,16 +365,13 @@ void RunInterpolate(const InterpArgs& a) {
   const auto& sa = data.samples[static_cast<std::size_t>(a.a)];
   const auto& sb = data.samples[static_cast<std::size_t>(a.b)];
   if (sa.cad_class != sb.cad_class) throw InvalidArgument("--a and --b must be of the same class");
-  const auto za = model.Encode(sa.grid, sa.cad_class).first;
-  const auto zb = model.Encode(sb.grid, sb.cad_class).first;
-  const auto convexes = model.ConvexPlanes();
-  pipeline::BspMeshOptions mopt;
-  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
+  const Eigen::VectorXf za = decoder.Encode(sa.grid, sa.cad_class).head(L);
+  const Eigen::VectorXf zb = decoder.Encode(sb.grid, sb.cad_class).head(L);
   std::filesystem::create_directories(a.out_dir);
   for (int i = 0; i < a.steps; ++i) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(i) / (a.steps - 1);
     const Eigen::VectorXf z = pipeline::InterpolateCodes(za, zb, t);
-    const auto mesh = pipeline::ExtractBspMesh(model.DecodePlanes(z, sa.cad_class), convexes, mopt);
+    const pipeline::BspMeshResult mesh = decoder.Decode(z, sa.cad_class);
     const std::string path = a.out_dir + "/interp_" + std::to_string(i) + ".ply";
     geometry::WritePly(path, mesh.mesh);
     std::printf("t=%.2f  %zu triangles  %s\n", t, mesh.mesh.faces.size(), path.c_str());
@@ -387,29 +392,31 @@ double Median(std::vector<double> v) {
 }
 
 void RunBench(const BenchArgs& a) {
-  const nn::BspModel model = nn::BspModel::Load(a.model);
+  const pipeline::BspDecoder decoder = LoadDecoder(a.model, a.dilation);
+  const nn::BspModel& model = decoder.model();
   nn::BspDataset data = nn::BspDataset::Load(a.data);
   if (data.samples.size() > static_cast<std::size_t>(a.count)) data.samples.resize(a.count);
   if (data.samples.empty()) throw InvalidArgument("bench: empty dataset");
-  using Clock = std::chrono::steady_clock;
-  auto t0 = Clock::now();
+  const Stopwatch encode_clock;
   const Eigen::MatrixXf codes = model.EncodeAll(data);
-  const double encode_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  const auto convexes = model.ConvexPlanes();
-  pipeline::BspMeshOptions mopt;
-  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
+  const double encode_s = encode_clock.ElapsedSeconds();
   std::vector<double> decode_ms, mesh_ms, total_ms, tris;
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
-    const Eigen::VectorXf mu =
-        codes.row(static_cast<Eigen::Index>(s)).head(model.config().latent_dim);
-    auto t1 = Clock::now();
-    const Eigen::MatrixXf planes = model.DecodePlanes(mu, data.samples[s].cad_class);
-    auto t2 = Clock::now();
-    const auto mesh = pipeline::ExtractBspMesh(planes, convexes, mopt);
-    auto t3 = Clock::now();
-    decode_ms.push_back(std::chrono::duration<double, std::milli>(t2 - t1).count());
-    mesh_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t2).count());
-    total_ms.push_back(std::chrono::duration<double, std::milli>(t3 - t1).count());
+    const Eigen::VectorXf mu = codes.row(static_cast<Eigen::Index>(s)).head(decoder.latent_dim());
+    Timings t;
+    Eigen::MatrixXf planes;
+    pipeline::BspMeshResult mesh;
+    {
+      ScopedTimer timer(&t, "decoder");
+      planes = decoder.Planes(mu, data.samples[s].cad_class);
+    }
+    {
+      ScopedTimer timer(&t, "mesh");
+      mesh = decoder.MeshFromPlanes(planes);
+    }
+    decode_ms.push_back(t.ms("decoder"));
+    mesh_ms.push_back(t.ms("mesh"));
+    total_ms.push_back(t.total_ms());
     tris.push_back(static_cast<double>(mesh.mesh.faces.size()));
   }
   std::printf("BSP decode + mesh extraction, %zu objects, model %s\n", data.samples.size(),

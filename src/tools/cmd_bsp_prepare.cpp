@@ -2,7 +2,6 @@
 // ShapeNet-format tree; `dimr bsp render|eval-cad` on procedural models.
 #include <Eigen/Core>
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -11,16 +10,17 @@
 #include <string>
 #include <vector>
 
+#include "dimr/core/hash.h"
+#include "dimr/core/timing.h"
 #include "dimr/data/cad_library.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/shapenet_io.h"
 #include "dimr/eval/mesh_metrics.h"
 #include "dimr/eval/parallel.h"
 #include "dimr/geometry/error.h"
-#include "dimr/geometry/hash.h"
 #include "dimr/nn/bsp_dataset.h"
-#include "dimr/nn/bsp_model.h"
 #include "dimr/pipeline/bsp_data.h"
+#include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/shape_pool.h"
 #include "tools/bsp_options.h"
@@ -28,12 +28,6 @@
 #include "tools/render.h"
 
 namespace dimr::tools {
-
-namespace {
-
-std::uint64_t Fnv1a(const std::string& text) { return geometry::Fnv1a(text.data(), text.size()); }
-
-}  // namespace
 
 std::string ShapeNetSplitOf(const std::string& model_id) {
   const std::uint64_t bucket = Fnv1a(model_id) % 100;
@@ -138,7 +132,7 @@ std::uint64_t ModelSeed(std::uint64_t seed, int cad_class, int i) {
 }
 
 void RunPrepareShapeNet(const PrepareArgs& a) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch elapsed;
   ShapeNetSelection sel;
   sel.split = a.split;
   sel.classes = ParseClasses(a.classes);
@@ -155,7 +149,7 @@ void RunPrepareShapeNet(const PrepareArgs& a) {
     counts += (counts.empty() ? "" : ", ") + std::string(data::CadClassNames()[c]) + " " +
               std::to_string(count[c]);
   }
-  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double secs = elapsed.ElapsedSeconds();
   std::printf("wrote %zu samples (R=%d, split %s: %s) from %s to %s in %.1f s\n",
               data.samples.size(), a.resolution, a.split.c_str(), counts.c_str(),
               a.shapenet.c_str(), a.out.c_str(), secs);
@@ -170,7 +164,7 @@ void RunPrepare(const PrepareArgs& a) {
   pipeline::BspSampleOptions opt;
   opt.resolution = a.resolution;
   const auto classes = ParseClasses(a.classes);
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch elapsed;
   const std::size_t total = classes.size() * static_cast<std::size_t>(per_class);
   // Each shape depends only on its (seed, class, index), so the output is the same for any
   // number of jobs: every item writes its own slot.
@@ -194,7 +188,7 @@ void RunPrepare(const PrepareArgs& a) {
       &progress);
   progress.Finish();
   data.Save(a.out);
-  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double secs = elapsed.ElapsedSeconds();
   std::printf("wrote %zu samples (R=%d) to %s in %.1f s\n", data.samples.size(), a.resolution,
               a.out.c_str(), secs);
 }
@@ -236,20 +230,18 @@ struct RenderArgs {
 };
 
 // Decoded mesh of a CAD model through the autoencoder, with its grid IoU (percent).
-tools::RenderTile Reconstruct(const nn::BspModel& model,
-                              const std::vector<std::vector<int>>& convexes,
-                              const Eigen::VectorXf& mu, int c, const geometry::Vec3& scale,
-                              const nn::BspSample* sample, const pipeline::BspMeshOptions& mopt) {
-  const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-  const pipeline::BspMeshResult r = pipeline::ExtractBspMesh(planes, convexes, mopt);
+tools::RenderTile Reconstruct(const pipeline::BspDecoder& decoder, const Eigen::VectorXf& mu, int c,
+                              const geometry::Vec3& scale, const nn::BspSample* sample) {
+  const Eigen::MatrixXf planes = decoder.Planes(mu, c);
+  const pipeline::BspMeshResult r = decoder.MeshFromPlanes(planes);
   tools::RenderTile t;
   t.mesh = r.mesh;
   t.scale = scale;
   for (int k : r.face_convex)
     t.face_colors.push_back(tools::NameColour("convex" + std::to_string(k)));
   if (sample) {
-    const int R = model.config().resolution;
-    const auto occ = pipeline::BspOccupancy(planes, convexes, pipeline::BspGridCenters(R), mopt);
+    const auto occ =
+        decoder.OccupancyFromPlanes(planes, pipeline::BspGridCenters(decoder.resolution()));
     const double iou = pipeline::OccupancyIoU(occ, sample->iou_grid);
     t.label = "bsp iou " + std::to_string(static_cast<int>(100 * iou));
   }
@@ -257,12 +249,11 @@ tools::RenderTile Reconstruct(const nn::BspModel& model,
 }
 
 void RunRender(const RenderArgs& a) {
-  const nn::BspModel model = nn::BspModel::Load(a.model);
-  const auto convexes = model.ConvexPlanes();
-  pipeline::BspMeshOptions mopt;
-  tools::ApplyBspDilation(a.model, a.dilation, &mopt);
+  const pipeline::BspDecoder decoder =
+      pipeline::BspDecoder::Load(a.model, {a.dilation.plane, a.dilation.distance});
+  const int L = decoder.latent_dim();
   pipeline::BspSampleOptions opt;
-  opt.resolution = model.config().resolution;
+  opt.resolution = decoder.resolution();
   auto original = [&](int c, int i, nn::BspSample* sample) {
     const std::uint64_t seed = ModelSeed(a.seed, c, i);
     const data::CadModel m = data::GenerateCadModel(c, seed);
@@ -275,12 +266,12 @@ void RunRender(const RenderArgs& a) {
     return t;
   };
   std::vector<tools::RenderTile> tiles;
-  for (int c = 0; c < model.config().num_classes && c < data::kNumCadClasses; ++c) {
+  for (int c = 0; c < decoder.num_classes() && c < data::kNumCadClasses; ++c) {
     for (int i = 0; i < a.per_class; ++i) {
       nn::BspSample sample;
       tools::RenderTile orig = original(c, i, &sample);
-      const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
-      tiles.push_back(Reconstruct(model, convexes, mu, c, orig.scale, &sample, mopt));
+      const Eigen::VectorXf mu = decoder.Encode(sample.grid, c).head(L);
+      tiles.push_back(Reconstruct(decoder, mu, c, orig.scale, &sample));
       tiles.insert(tiles.end() - 1, std::move(orig));
     }
   }
@@ -292,14 +283,15 @@ void RunRender(const RenderArgs& a) {
   if (c < 0) throw InvalidArgument("--interp-class: unknown class '" + a.interp_class + "'");
   nn::BspSample sa, sb;
   tools::RenderTile ta = original(c, 0, &sa), tb = original(c, 1, &sb);
-  const Eigen::VectorXf za = model.Encode(sa.grid, c).first, zb = model.Encode(sb.grid, c).first;
+  const Eigen::VectorXf za = decoder.Encode(sa.grid, c).head(L);
+  const Eigen::VectorXf zb = decoder.Encode(sb.grid, c).head(L);
   std::vector<tools::RenderTile> strip;
   strip.push_back(ta);
   for (int s = 0; s < a.steps; ++s) {
     const double t = a.steps == 1 ? 0.0 : static_cast<double>(s) / (a.steps - 1);
     const geometry::Vec3 scale = (1 - t) * ta.scale + t * tb.scale;
-    tools::RenderTile tile = Reconstruct(model, convexes, pipeline::InterpolateCodes(za, zb, t), c,
-                                         scale, nullptr, mopt);
+    tools::RenderTile tile =
+        Reconstruct(decoder, pipeline::InterpolateCodes(za, zb, t), c, scale, nullptr);
     tile.label = "t " + std::to_string(static_cast<int>(std::lround(100 * t)));
     strip.push_back(std::move(tile));
   }
@@ -338,20 +330,20 @@ struct EvalCadArgs {
 // mesh, in units of the normalised cube [-1, 1]^3) between held-out CAD models and their
 // decoded BSP meshes.
 void RunEvalCad(const EvalCadArgs& a) {
-  const nn::BspModel model = nn::BspModel::Load(a.model);
-  const auto convexes = model.ConvexPlanes();
+  const pipeline::BspDecoder decoder =
+      pipeline::BspDecoder::Load(a.model, {a.dilation.plane, a.dilation.distance});
   pipeline::BspSampleOptions opt;
-  opt.resolution = model.config().resolution;
+  opt.resolution = decoder.resolution();
   const int R = opt.resolution;
+  const int L = decoder.latent_dim();
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
-  pipeline::BspMeshOptions mopt;
-  const BspDilation dilation = tools::ApplyBspDilation(a.model, a.dilation, &mopt);
-  std::printf("dilation %.3g, distance dilation %.3g\n\n", dilation.plane, dilation.distance);
+  std::printf("dilation %.3g, distance dilation %.3g\n\n", decoder.mesh_options().dilation,
+              decoder.mesh_options().distance_dilation);
   std::printf(
       "| class | shapes | IoU@32^3 | Chamfer (x 1e-2) | empty meshes |\n|---|---|---|---|---|\n");
   double all_iou = 0, all_cd = 0;
   int all_n = 0, all_cd_n = 0;
-  for (int c = 0; c < data::kNumCadClasses && c < model.config().num_classes; ++c) {
+  for (int c = 0; c < data::kNumCadClasses && c < decoder.num_classes(); ++c) {
     double iou_sum = 0, cd_sum = 0;
     int n = 0, cd_n = 0, empty = 0;
     for (int i = 0; i < a.per_class; ++i) {
@@ -359,12 +351,12 @@ void RunEvalCad(const EvalCadArgs& a) {
       const data::CadModel m = data::GenerateCadModel(c, seed);
       const nn::BspSample sample =
           pipeline::MakeBspSample(m.mesh, c, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
-      const Eigen::VectorXf mu = model.Encode(sample.grid, c).first;
-      const Eigen::MatrixXf planes = model.DecodePlanes(mu, c);
-      const auto occ = pipeline::BspOccupancy(planes, convexes, centers, mopt);
+      const Eigen::VectorXf mu = decoder.Encode(sample.grid, c).head(L);
+      const Eigen::MatrixXf planes = decoder.Planes(mu, c);
+      const auto occ = decoder.OccupancyFromPlanes(planes, centers);
       iou_sum += pipeline::OccupancyIoU(occ, sample.iou_grid);
       ++n;
-      const geometry::TriangleMesh decoded = pipeline::ExtractBspMesh(planes, convexes, mopt).mesh;
+      const geometry::TriangleMesh decoded = decoder.MeshFromPlanes(planes).mesh;
       if (decoded.faces.empty()) {
         ++empty;
         continue;

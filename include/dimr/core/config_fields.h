@@ -31,7 +31,7 @@
 #include <utility>
 #include <vector>
 
-#include "dimr/geometry/error.h"
+#include "dimr/core/error.h"
 
 namespace dimr::config {
 

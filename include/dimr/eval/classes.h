@@ -1,5 +1,5 @@
 // The 8 CAD classes the DIMR evaluation reports on, and the 25-class RFS -> CAD map used to
-// label PCR ground truth (kept inside eval so the layer depends on geometry only).
+// label PCR ground truth, under the eval layer's names (the tables: dimr/core/labels.h).
 // Spec: ../shared/reference/dimr-metrics.md section 1.1 and dimr-method.md section 8.1.
 #pragma once
 

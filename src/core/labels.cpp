@@ -1,10 +1,10 @@
-#include "dimr/data/labels.h"
+#include "dimr/core/labels.h"
 
 #include <string>
 
-#include "dimr/geometry/error.h"
+#include "dimr/core/error.h"
 
-namespace dimr::data {
+namespace dimr::labels {
 
 const std::array<const char*, kNumRfsClasses>& RfsClassNames() {
   static const std::array<const char*, kNumRfsClasses> kNames = {"wall",
@@ -116,4 +116,4 @@ int CadClassFromSynset(const std::string& synset) {
   return -1;
 }
 
-}  // namespace dimr::data
+}  // namespace dimr::labels
