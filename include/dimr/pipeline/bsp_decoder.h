@@ -3,13 +3,13 @@
 // or occupancy out; CAD mesh in, code out.
 //
 // Canonical object frame (the frame of every mesh, point and code here): the frame of a CAD
-// model in the procedural library and of a ShapeNet model read by data::ReadShapeNetModel:
-// x forward (the side a chair is sat on from, a display's screen), y left, z up, origin at the
-// centre of the object's bounding box. The BSP networks work in a box-normalised copy of it
-// (pipeline::NormalizeForBsp, bsp_data.h): each axis is scaled on its own so that the
-// bounding box becomes [-s, s]^3 with s = 1 - 1/R (R = the encoder grid, 32: s = 0.96875), so
-// decoded meshes lie inside [-1, 1]^3 (polytopes are clipped to it) and fill it on every axis
-// up to the decoder's error. The object's real proportions are not in the code: placing a
+// model in the procedural library (data/cad_library.h) and of a ShapeNet model read by
+// data::ReadShapeNetModel: x forward (the side a person faces / uses), y left, z up, origin at
+// the centre of the object's bounding box. The BSP networks work in a box-normalised copy of it
+// (pipeline::NormalizeForBsp, bsp_data.h): each axis is scaled on its own so that the bounding
+// box becomes [-s, s]^3 with s = 1 - 1/R (R = the encoder grid, 32: s = 0.96875); a CAD model's
+// unit box [-0.5, 0.5]^3 maps by p -> 2 s p. Decoded meshes lie inside [-1, 1]^3 (polytopes
+// are clipped to it) and fill [-s, s] on every axis up to the decoder's error. The object's real proportions are not in the code: placing a
 // mesh in a scene scales it by the object's box (stage 2) again.
 //
 // Decoding = planes (decoder network) -> the card's dilations (recommended_dilation,
