@@ -650,6 +650,24 @@ TEST_F(NodeTest, BurstAt50HzWhileInferenceRunsStaysResponsive) {
       1000 * worst_service, cb);
 }
 
+TEST_F(NodeTest, MemoryFlatOverManyClouds) {
+  // 300 clouds with noise (the tracker, markers and scene state see a new revision each time):
+  // the resident set after warm-up must not grow by more than 5 %.
+  Start("soak", false);
+  auto rss = [&] { return std::stod(Diag("rss_mb")); };
+  double warm = 0;
+  for (int i = 0; i < 300; ++i) {
+    Publish(Boxes("sensor", ros::Time::now(), 0.003f, 100 + i));
+    if (i == 99) warm = rss();
+  }
+  const double end = rss();
+  std::printf("soak: rss %.1f MB after 100 clouds, %.1f MB after 300\n", warm, end);
+  RecordProperty("rss_warm_mb", std::to_string(warm));
+  RecordProperty("rss_end_mb", std::to_string(end));
+  EXPECT_LT(end, warm * 1.05);
+  EXPECT_EQ(std::stoi(Diag("clouds_processed")), 300);
+}
+
 TEST(RosParams, ReadValidatedWithUnknownKeysFromTheParameterServer) {
   ros::NodeHandle pnh("/params_ok/dimr");
   pnh.setParam("fixed_frame", "odom");
