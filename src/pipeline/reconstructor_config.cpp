@@ -90,6 +90,8 @@ std::string ReconstructorConfig::ToYaml() const {
     << "score_threshold: " << score_threshold << "\n"
     << "min_points: " << min_points << "\n"
     << "nms_iou: " << nms_iou << "\n"
+    << "box_residual: " << (box_residual ? "true" : "false") << "\n"
+    << "multi_scale: " << (multi_scale ? "true" : "false") << "\n"
     << "icp:\n"
     << "  enabled: " << (icp.enabled ? "true" : "false") << "\n"
     << "  max_correspondence: " << icp.max_correspondence << "\n"

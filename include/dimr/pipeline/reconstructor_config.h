@@ -53,6 +53,12 @@ struct ReconstructorConfig {
 
   IcpConfig icp;
 
+  // Module switches (ablations): the stage-2 box residual (false: the proposal's own box,
+  // centre c0 and extents s0) and stage 1's multi-scale clustering (false: one shifted pass at
+  // 3 cm).
+  bool box_residual = true;
+  bool multi_scale = true;
+
   // Input validation (in the input frame, metres).
   std::size_t max_points = 3000000;  // more points: an error (downsample first)
   int min_input_points = 50;         // fewer points: an empty result with a warning
