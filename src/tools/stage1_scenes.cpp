@@ -195,14 +195,26 @@ std::vector<nn::Stage1Sample> LoadStage1Scenes(const std::string& scans_dir,
   return out;
 }
 
-std::string Stage1SplitOfScene(const std::string& name) {
-  if (name.size() < 9 || name.compare(0, 5, "scene") != 0) return "other";
+const config::EnumNames<SceneSplit>& SceneSplitNames() {
+  static const config::EnumNames<SceneSplit> names("split", {{SceneSplit::kTrain, "train"},
+                                                             {SceneSplit::kVal, "val"},
+                                                             {SceneSplit::kTest, "test"},
+                                                             {SceneSplit::kOther, "other"}});
+  return names;
+}
+
+SceneSplit Stage1SplitOf(const std::string& name) {
+  if (name.size() < 9 || name.compare(0, 5, "scene") != 0) return SceneSplit::kOther;
   int id = 0;
   for (int k = 5; k < 9; ++k) {
-    if (name[k] < '0' || name[k] > '9') return "other";
+    if (name[k] < '0' || name[k] > '9') return SceneSplit::kOther;
     id = id * 10 + (name[k] - '0');
   }
-  return id < 5000 ? "train" : id < 8000 ? "val" : "test";
+  return id < 5000 ? SceneSplit::kTrain : id < 8000 ? SceneSplit::kVal : SceneSplit::kTest;
+}
+
+std::string Stage1SplitOfScene(const std::string& name) {
+  return SceneSplitNames().Name(Stage1SplitOf(name));
 }
 
 }  // namespace dimr::tools

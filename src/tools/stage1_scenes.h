@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/data/scan2cad_io.h"
 #include "dimr/data/scan2cad_relabel.h"
 #include "dimr/data/synthscan.h"
@@ -50,7 +51,11 @@ std::vector<nn::Stage1Sample> LoadStage1Scenes(const std::string& scans_dir,
                                                Stage1LoadReport* report = nullptr);
 
 // Split of a scene by its name (SynthScan's ranges, data::SceneName): "scene0000".."scene4999"
-// train, "scene5000".."scene7999" val, "scene8000".. test; anything else "other".
+// train, "scene5000".."scene7999" val, "scene8000".. test; anything else other.
+enum class SceneSplit { kTrain, kVal, kTest, kOther };
+const config::EnumNames<SceneSplit>& SceneSplitNames();  // train, val, test, other
+SceneSplit Stage1SplitOf(const std::string& name);
+// The name of Stage1SplitOf(name).
 std::string Stage1SplitOfScene(const std::string& name);
 
 }  // namespace dimr::tools

@@ -137,6 +137,9 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_EQ(b["points_per_room"].get<int>(), 5000);
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
+  // The bench runs the settings `stage1 eval` runs (the card's: 2 rotations x mirror).
+  EXPECT_EQ(b["inference"].get<std::string>(), jc["inference"].get<std::string>());
+  EXPECT_NE(out.find("4 network passes per room"), std::string::npos) << out;
 
   // Calibration: the fitted class bias never lowers the mIoU, and `stage1 eval` with the
   // printed bias and vote exclusions reproduces exactly the mIoU calibrate reports.
@@ -184,7 +187,19 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
                              "/cache.bin --class-bias 0.1,0.2");
   EXPECT_NE(rc, 0);
-  EXPECT_NE(out.find("class_bias: 2 values, expected 25"), std::string::npos) << out;
+  EXPECT_NE(out.find("'class_bias=0.1,0.2': 2 values, expected 25"), std::string::npos) << out;
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --rotations 6x");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("'rotations=6x'"), std::string::npos) << out;
+  // --preset fast: one network pass, the card's clustering and vote kept.
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --preset fast --json " + d + "/eval_fast.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json jq = nlohmann::json::parse(ReadFileText(d + "/eval_fast.json"));
+  EXPECT_EQ(jq["rotations"].get<int>(), 1);
+  EXPECT_FALSE(jq["mirror"].get<bool>());
+  EXPECT_DOUBLE_EQ(jq["vote_radius"].get<double>(), 0.05);
   std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
                              "/cache.bin --vote-exclude picture,sofa2");
   EXPECT_NE(rc, 0);

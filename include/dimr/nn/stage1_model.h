@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/nn/stage1_data.h"
 
 namespace dimr::nn {
@@ -97,6 +98,38 @@ struct Stage1Timing {
 std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples,
                                         int num_classes = kStage1Classes, double min_w = 0.25,
                                         double max_w = 4.0, double power = 0.5);
+
+// How `dimr train stage1 --class-weights` weights the semantic loss: none (the reference),
+// sqrt-inverse (SemanticClassWeights defaults) or inverse (power 1, clamped to [0.1, 10]).
+enum class ClassWeighting { kNone, kSqrtInverse, kInverse };
+inline const config::EnumNames<ClassWeighting>& ClassWeightingNames() {
+  static const config::EnumNames<ClassWeighting> names(
+      "class weighting", {{ClassWeighting::kNone, "none"},
+                          {ClassWeighting::kSqrtInverse, "sqrt-inverse"},
+                          {ClassWeighting::kInverse, "inverse"}});
+  return names;
+}
+// The weights of `weighting` (empty for kNone).
+inline std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples,
+                                               ClassWeighting weighting, int num_classes) {
+  switch (weighting) {
+    case ClassWeighting::kSqrtInverse:
+      return SemanticClassWeights(samples, num_classes);
+    case ClassWeighting::kInverse:
+      return SemanticClassWeights(samples, num_classes, 0.1, 10.0, 1.0);
+    case ClassWeighting::kNone:
+      break;
+  }
+  return {};
+}
+
+// Where training runs (Stage1TrainOptions::device, BspTrainOptions::device hold the name).
+enum class Device { kCpu, kCuda };
+inline const config::EnumNames<Device>& DeviceNames() {
+  static const config::EnumNames<Device> names("device",
+                                               {{Device::kCpu, "cpu"}, {Device::kCuda, "cuda"}});
+  return names;
+}
 
 // Intra-op threads of the network (at::set_num_threads), for torch-free callers.
 void SetIntraOpThreads(int threads);

@@ -88,8 +88,9 @@ struct Stage1InferenceConfig {
                                           const Stage1InferenceConfig& base);
   // The declarations behind the text form (also the CLI options, src/tools/config_options.h).
   static const config::Fields<Stage1InferenceConfig>& Fields();
-  // The card's `recommended_inference` (defaults when the key is absent), under `preset`.
-  // Throws dimr::ParseError naming the card and the key for a bad line.
+  // The card's `recommended_inference` line (defaults when the key is absent), then single
+  // keys of a `stage1_inference:` mapping (YAML: `stage1_inference: {rotations: 2}`), under
+  // `preset`. Throws dimr::ParseError naming the card and the key for a bad value.
   static Stage1InferenceConfig FromModelCard(const ModelCard& card,
                                              Stage1Preset preset = Stage1Preset::kAccurate);
   // `preset` applied to this config (kFast: rotations 1, no mirror).

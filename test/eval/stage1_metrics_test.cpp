@@ -1,0 +1,92 @@
+// Stage-1 metrics (eval/stage1_metrics.h): semantic IoU over the classes present, confusions,
+// instance AP of perfect / wrong predictions, the heading error of matched instances, errors.
+#include "dimr/eval/stage1_metrics.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "dimr/geometry/error.h"
+
+namespace dimr::eval {
+namespace {
+
+// 340 points: 0..99 wall (0), 100..219 chair instance (RFS 4, CAD 1, heading 0.5),
+// 220..339 table instance (RFS 6, CAD 0, no heading). Instances of >= 100 points count for AP.
+Stage1SceneEval Scene() {
+  Stage1SceneEval s;
+  s.gt_instances = {{1, true, 0.5}, {0, false, 0.0}};
+  for (int i = 0; i < 340; ++i) {
+    s.gt_semantic.push_back(i < 100 ? 0 : i < 220 ? 4 : 6);
+    s.gt_instance.push_back(i < 100 ? -1 : i < 220 ? 0 : 1);
+  }
+  s.pred_semantic = s.gt_semantic;
+  Stage1PredInstance chair, table;
+  for (int i = 100; i < 220; ++i) chair.points.push_back(i);
+  for (int i = 220; i < 340; ++i) table.points.push_back(i);
+  chair.cad_class = 1;
+  chair.score = 0.9;
+  chair.heading = 0.5 + 10.0 * M_PI / 180.0;  // 10 degrees off
+  table.cad_class = 0;
+  table.score = 0.8;
+  s.preds = {chair, table};
+  return s;
+}
+
+TEST(Stage1Metrics, PerfectScenesScoreOneAndHeadingErrorsAreMedians) {
+  Stage1MetricsAccumulator acc;
+  Stage1SceneEval a = Scene();
+  acc.Add(a);
+  a.preds[0].heading = 0.5 - 30.0 * M_PI / 180.0 + 2 * M_PI;  // 30 degrees, wrapped
+  acc.Add(a);
+  a.preds[0].heading = 0.5 + 20.0 * M_PI / 180.0;
+  acc.Add(a);
+  const Stage1Metrics m = acc.Result();
+  EXPECT_EQ(m.scenes, 3);
+  EXPECT_EQ(m.points, 1020);
+  EXPECT_EQ(m.classes_present, 3);
+  EXPECT_DOUBLE_EQ(m.miou_present, 1.0);
+  EXPECT_NEAR(m.heading_error_deg, 20.0, 1e-9);  // median of 10, 30, 20
+  EXPECT_DOUBLE_EQ(m.instances.class_ap50[1], 1.0);
+  EXPECT_DOUBLE_EQ(m.instances.class_ap50[0], 1.0);
+  EXPECT_TRUE(std::isnan(m.instances.class_ap50[3]));  // no sofa anywhere
+  EXPECT_EQ(m.confused_with[4], -1);
+}
+
+TEST(Stage1Metrics, WrongLabelsLowerTheIouAndNameTheConfusion) {
+  Stage1SceneEval s = Scene();
+  for (int i = 100; i < 130; ++i) s.pred_semantic[i] = 0;  // 30 chair points taken for wall
+  s.preds[0].cad_class = 3;                                // the chair called a sofa
+  Stage1MetricsAccumulator acc;
+  acc.Add(s);
+  const Stage1Metrics m = acc.Result();
+  EXPECT_NEAR(m.semantic.iou[4], 90.0 / 120.0, 1e-12);
+  EXPECT_NEAR(m.semantic.iou[0], 100.0 / 130.0, 1e-12);
+  EXPECT_EQ(m.confused_with[4], 0);
+  EXPECT_NEAR(m.confused_share[4], 0.25, 1e-12);
+  EXPECT_DOUBLE_EQ(m.instances.class_ap50[1], 0.0);    // the chair was missed
+  EXPECT_TRUE(std::isnan(m.instances.class_ap50[3]));  // a false sofa: no GT, ScanNet's NaN
+}
+
+TEST(Stage1Metrics, InconsistentScenesNameTheScene) {
+  Stage1MetricsAccumulator acc;
+  acc.Add(Scene());
+  Stage1SceneEval s = Scene();
+  s.pred_semantic.pop_back();
+  try {
+    acc.Add(s);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("scene 1"), std::string::npos) << e.what();
+  }
+  s = Scene();
+  s.preds[0].points.push_back(340);
+  EXPECT_THROW(acc.Add(s), InvalidArgument);
+  s = Scene();
+  s.gt_instance[5] = 7;
+  EXPECT_THROW(acc.Add(s), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::eval
