@@ -275,6 +275,8 @@ std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples
   return w;
 }
 
+std::string SparseKernelsInUse() { return SparseKernelPathName(ResolveSparseKernelPath()); }
+
 void SetIntraOpThreads(int threads) {
   if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
   torch::set_num_threads(threads);

@@ -686,6 +686,18 @@ double Median(std::vector<double> v) {
   return v[v.size() / 2];
 }
 
+// /proc/cpuinfo's model name ("unknown CPU" where there is none).
+std::string CpuModel() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) {
+      return line.substr(line.find(':') + 2);
+    }
+  }
+  return "unknown CPU";
+}
+
 void RunBench(const BenchArgs& a) {
   std::string source;
   const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
@@ -746,6 +758,7 @@ void RunBench(const BenchArgs& a) {
               segmenter.model_config().c_str(), a.rooms, a.repeats, npts, a.threads);
   std::printf("inference %s (from %s and the flags): %d network passes per room\n",
               inf.ToString().c_str(), source.c_str(), inf.network_passes());
+  std::printf("CPU %s, sparse kernels %s\n", CpuModel().c_str(), nn::SparseKernelsInUse().c_str());
   std::printf("| step | median ms | min ms | max ms |\n|---|---|---|---|\n");
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const auto& v = ms[k];
@@ -764,6 +777,8 @@ void RunBench(const BenchArgs& a) {
     j["rotations"] = inf.rotations;
     j["mirror"] = inf.mirror;
     j["vote_radius"] = inf.vote_radius;
+    j["cpu"] = CpuModel();
+    j["sparse_kernels"] = nn::SparseKernelsInUse();
     nlohmann::json m;
     for (std::size_t k = 0; k < rows.size(); ++k) m[rows[k].first] = Median(ms[k]);
     j["median_ms"] = m;

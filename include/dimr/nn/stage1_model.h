@@ -131,6 +131,10 @@ inline const config::EnumNames<Device>& DeviceNames() {
   return names;
 }
 
+// The sparse-convolution kernel path the network takes on this CPU ("avx512", "avx2",
+// "gemm"), for benchmark headers.
+std::string SparseKernelsInUse();
+
 // Intra-op threads of the network (at::set_num_threads), for torch-free callers.
 void SetIntraOpThreads(int threads);
 
