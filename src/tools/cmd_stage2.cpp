@@ -396,6 +396,7 @@ struct Stage2Metrics {
   int proposals = 0, positives = 0, matched = 0;
   nn::Stage2LossTerms loss;
   double score_ap = NAN, prior_ap = NAN;          // stage-2 score vs stage-1 score ranking
+  double combined_ap = NAN;                       // sqrt(stage-1 score x stage-2 score)
   double box_iou = 0, box_iou_baseline = 0;       // mean over matched proposals
   double box_iou50 = 0, box_iou50_baseline = 0;   // share of matched with box IoU >= 0.5
   double latent_l1 = 0, latent_l1_mean_code = 0;  // mean |mu - mu_gt| (per dim)
@@ -454,7 +455,7 @@ Stage2Metrics EvaluateStage2(const nn::Stage2Model& model,
   m.loss.latent /= wsum;
   m.loss.center /= wsum;
   m.loss.size /= wsum;
-  std::vector<double> score, prior;
+  std::vector<double> score, prior, combined;
   std::vector<int> label;
   const int L = model.config().latent_dim;
   double iou_sum = 0, base_sum = 0, l1 = 0, l1_mean = 0, code_l1 = 0;
@@ -463,6 +464,7 @@ Stage2Metrics EvaluateStage2(const nn::Stage2Model& model,
     const nn::Stage2Sample& s = samples[i];
     score.push_back(o.score(i));
     prior.push_back(s.prior_score);
+    combined.push_back(std::sqrt(std::max(0.0f, s.prior_score) * o.score(i)));
     const bool positive = s.iou >= 0.5f && s.gt_class == s.proposal_class;
     label.push_back(positive ? 1 : 0);
     m.positives += positive ? 1 : 0;
@@ -495,6 +497,7 @@ Stage2Metrics EvaluateStage2(const nn::Stage2Model& model,
   }
   m.score_ap = AveragePrecision(score, label);
   m.prior_ap = AveragePrecision(prior, label);
+  m.combined_ap = AveragePrecision(combined, label);
   if (m.matched > 0) {
     m.box_iou = iou_sum / m.matched;
     m.box_iou_baseline = base_sum / m.matched;
@@ -515,6 +518,7 @@ void PrintMetrics(const Stage2Metrics& m) {
   std::printf("\n| metric | stage 2 | baseline |\n|---|---|---|\n");
   std::printf("| proposal score AP (IoU >= 0.5) | %.4f | %.4f (stage-1 score) |\n", m.score_ap,
               m.prior_ap);
+  std::printf("| AP of sqrt(stage-1 x stage-2 score) | %.4f | - |\n", m.combined_ap);
   std::printf("| mean box IoU (matched) | %.4f | %.4f (proposal box c0, s0) |\n", m.box_iou,
               m.box_iou_baseline);
   std::printf("| box IoU >= 0.5 (matched) | %.4f | %.4f |\n", m.box_iou50, m.box_iou50_baseline);
@@ -584,16 +588,16 @@ void WriteCard(const TrainArgs& a, const std::string& command, const nn::Stage2M
                const std::string& weights_path) {
   std::ofstream y(a.out + "/model.yaml");
   y << "name: stage2\n";
-  y << "description: DIMR stage 2 (per-proposal sparse U-Net on the 20^3 grid, max-pool, heads: "
+  y << "description: \"DIMR stage 2 (per-proposal sparse U-Net on the 20^3 grid, max-pool, heads: "
        "score 1, latent [mu, logvar] 2x"
     << model.config().latent_dim
-    << ", box residuals 8x3 centre + 8x3 size), dimr-method.md section 4\n";
+    << ", box residuals 8x3 centre + 8x3 size), dimr-method.md section 4\"\n";
   y << "architecture: \"" << model.config().ToString() << "\"\n";
   y << "parameters: " << model.NumParameters() << "\n";
-  y << "input: canonical proposal points (rotated by -heading, centred on the heading-aligned "
+  y << "input: \"canonical proposal points (rotated by -heading, centred on the heading-aligned "
        "box), "
        "features [stage-1 point feature, canonical xyz, height above floor]; pooled [max, s0, "
-       "centre height] - no absolute coordinates\n";
+       "centre height] - no absolute coordinates\"\n";
   y << "stage1_model: models/stage1/stage1.pt\n";
   y << "bsp_model: models/bsp/bsp.pt   # GT codes = its encoder on the GT CAD models\n";
   y << "training:\n";
@@ -741,7 +745,7 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--val", a->val, "validation caches");
   app.add_option("--out", a->out, "output folder (weights, card, logs, checkpoint/)");
   app.add_option("--config", a->config,
-                 "cpu | reference | 'features=16 height=1 grid=20 widths=32,48,64,96 reps=1 "
+                 "cpu | reference | 'features=16 height=1 grid=20 widths=16,32,48,64 reps=1 "
                  "latent=128 center_height=1'");
   app.add_option("--epochs", a->epochs, "epochs")->check(CLI::Range(1, 100000));
   app.add_option("--batch", a->batch, "proposals per step")->check(CLI::Range(1, 4096));

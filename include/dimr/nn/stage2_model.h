@@ -17,14 +17,17 @@
 namespace dimr::nn {
 
 struct Stage2Config {
-  Stage2InputConfig input;                           // feature_dim, point_height, grid
-  std::vector<std::int64_t> widths{32, 48, 64, 96};  // U-Net levels (reference 64,64,96,128)
-  int reps = 1;                                      // residual blocks per level (reference 2)
-  int latent_dim = 128;                              // mu (and logvar) size: head = 2 * latent_dim
+  Stage2InputConfig input;  // feature_dim, point_height, grid
+  // U-Net levels and residual blocks per level (reference 64,64,96,128 reps 2). The CPU default
+  // (the shipped model): 16,32,48,64 reps 1 trains at ~64 proposals/s on this loaded 2-core
+  // machine, against ~16/s for 32,48,64,96 and ~10/s for the reference's (docs/stage2.md).
+  std::vector<std::int64_t> widths{16, 32, 48, 64};
+  int reps = 1;
+  int latent_dim = 128;       // mu (and logvar) size: head = 2 * latent_dim
   bool center_height = true;  // append the proposal centre's height above the floor to the pool
   static Stage2Config Reference();  // widths 64,64,96,128, reps 2 (feature_dim 16 here)
   void Validate() const;            // throws dimr::InvalidArgument naming the key
-  // "features=16 height=1 grid=20 widths=32,48,64,96 reps=1 latent=128 center_height=1"
+  // "features=16 height=1 grid=20 widths=16,32,48,64 reps=1 latent=128 center_height=1"
   std::string ToString() const;
   static Stage2Config FromString(const std::string& text);
   int pooled_dim() const { return static_cast<int>(widths[0]) + 3 + (center_height ? 1 : 0); }
