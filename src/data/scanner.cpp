@@ -4,8 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <mutex>
-#include <thread>
 
+#include "dimr/core/parallel.h"
 #include "dimr/data/synth_random.h"
 #include "dimr/geometry/error.h"
 
@@ -433,8 +433,7 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
   const double cx = 0.5 * w, cy = 0.5 * h;
   const double cos_start = std::cos(Deg(cfg.grazing_start_deg));
   const double cos_end = std::cos(Deg(cfg.grazing_end_deg));
-  const int threads = std::max(
-      1, cfg.threads > 0 ? cfg.threads : static_cast<int>(std::thread::hardware_concurrency()));
+  const int threads = ResolveThreads(cfg.threads);
   std::vector<std::uint64_t> salts(room.objects.size());
   for (std::size_t i = 0; i < salts.size(); ++i) salts[i] = HashCombine(seed, 1000 + i);
 
@@ -509,14 +508,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
         }
       }
     };
-    if (threads == 1) {
-      work(0, h);
-    } else {
-      std::vector<std::thread> pool;
-      for (int k = 0; k < threads; ++k)
-        pool.emplace_back(work, h * k / threads, h * (k + 1) / threads);
-      for (auto& t : pool) t.join();
-    }
+    // Rows are independent (each seeds its own generator): any split gives the same scan.
+    ParallelRanges(static_cast<std::size_t>(h), threads, 1, [&](std::size_t b, std::size_t e) {
+      work(static_cast<int>(b), static_cast<int>(e));
+    });
     result.rays += static_cast<std::size_t>(w) * h;
     ScanFrame frame;
     frame.pose = est;

@@ -1,12 +1,12 @@
 #include "dimr/eval/evaluator.h"
 
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <memory>
 #include <set>
 
+#include "dimr/core/timing.h"
 #include "dimr/eval/lfd.h"
 #include "dimr/eval/parallel.h"
 #include "dimr/geometry/error.h"
@@ -19,12 +19,7 @@ namespace dimr::eval {
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
 using geometry::TriangleMesh;
-
-double Seconds(Clock::time_point a) {
-  return std::chrono::duration<double>(Clock::now() - a).count();
-}
 
 // values[pred][gt_j] for one metric (one threshold run for the reference CD).
 using PairValues = std::vector<std::vector<double>>;
@@ -70,7 +65,7 @@ const ApTable* EvalReport::Find(const std::string& metric, double threshold) con
 }
 
 EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
-  const auto t_start = Clock::now();
+  const Stopwatch total;
   EvalReport rep;
   rep.protocol = opt.protocol;
   rep.threads = ResolveThreads(opt.threads);
@@ -153,7 +148,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
   }
 
   // ---- Load meshes ------------------------------------------------------------------------
-  auto t0 = Clock::now();
+  Stopwatch stage;
   std::vector<std::shared_ptr<const TriangleMesh>> meshes(recs.size());
   {
     Progress bar("loading meshes", recs.size(), opt.progress);
@@ -177,7 +172,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
         },
         &bar);
   }
-  rep.timings.push_back({"load", Seconds(t0)});
+  rep.timings.push_back({"load", stage.ElapsedSeconds()});
 
   // GT lists per (scene, class) in file order.
   const int nscene = rep.num_scenes;
@@ -247,7 +242,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
 
   // ---- IoU ----------------------------------------------------------------------------------
   if (opt.iou) {
-    t0 = Clock::now();
+    stage.Restart();
     std::vector<geometry::ReferenceVoxels> vox(recs.size());
     {
       Progress bar("iou: voxelising", needed_list.size(), opt.progress);
@@ -266,12 +261,12 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
         make_table("iou", 0.25, v, PassTest::kGreater, MatchRule::kBestOverall, false));
     rep.tables.push_back(
         make_table("iou", 0.5, v, PassTest::kGreater, MatchRule::kBestOverall, false));
-    rep.timings.push_back({"iou", Seconds(t0)});
+    rep.timings.push_back({"iou", stage.ElapsedSeconds()});
   }
 
   // ---- CD -----------------------------------------------------------------------------------
   if (opt.cd) {
-    t0 = Clock::now();
+    stage.Restart();
     const double taus[2] = {0.1, 0.047};
     if (corrected) {
       // One deterministic sample set per mesh (seed from the content hash), shared by all pairs.
@@ -308,12 +303,12 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
             make_table("cd", taus[t], v, PassTest::kLess, MatchRule::kBestOverall, false));
       }
     }
-    rep.timings.push_back({"cd", Seconds(t0)});
+    rep.timings.push_back({"cd", stage.ElapsedSeconds()});
   }
 
   // ---- LFD ----------------------------------------------------------------------------------
   if (opt.lfd) {
-    t0 = Clock::now();
+    stage.Restart();
     lfd::DescriptorCache cache(opt.lfd_cache_dir);
     std::vector<std::shared_ptr<const lfd::Descriptor>> desc(recs.size());
     {
@@ -326,7 +321,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
           },
           &bar);
     }
-    const double desc_s = Seconds(t0);
+    const double desc_s = stage.ElapsedSeconds();
     rep.lfd_descriptors = cache.computed();
     if (cache.computed() > 0) {
       rep.lfd_ms_per_descriptor = 1000.0 * desc_s *
@@ -340,12 +335,12 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
       rep.tables.push_back(
           make_table("lfd", tau, v, PassTest::kLess, MatchRule::kBestOverall, false));
     }
-    rep.timings.push_back({"lfd", Seconds(t0)});
+    rep.timings.push_back({"lfd", stage.ElapsedSeconds()});
   }
 
   // ---- PCR ----------------------------------------------------------------------------------
   if (opt.pcr) {
-    t0 = Clock::now();
+    stage.Restart();
     PairValues v(npred);
     Progress bar("pcr", npred, opt.progress);
     ParallelFor(
@@ -364,7 +359,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
     bar.Finish();
     rep.tables.push_back(
         make_table("pcr", 0.5, v, PassTest::kGreater, MatchRule::kBestUnmatched, true));
-    rep.timings.push_back({"pcr", Seconds(t0)});
+    rep.timings.push_back({"pcr", stage.ElapsedSeconds()});
   }
 
   // The reference's index-shift bug (spec 2.8) only bites when a class has GT but no
@@ -380,7 +375,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
                            " has GT but no predictions: the reference scripts would shift later "
                            "classes' numbers (spec 2.8); dimr reports the unshifted values");
   }
-  rep.total_seconds = Seconds(t_start);
+  rep.total_seconds = total.ElapsedSeconds();
   return rep;
 }
 

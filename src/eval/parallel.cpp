@@ -1,9 +1,10 @@
 #include "dimr/eval/parallel.h"
 
+#include <algorithm>
 #include <cstdio>
-#include <exception>
-#include <thread>
-#include <vector>
+#include <utility>
+
+#include "dimr/core/parallel.h"
 
 namespace dimr::eval {
 
@@ -35,41 +36,15 @@ void Progress::Finish() {
   if (last_percent_ >= 0) std::fprintf(stderr, "\n");
 }
 
-int ResolveThreads(int threads) {
-  if (threads > 0) return threads;
-  const unsigned hc = std::thread::hardware_concurrency();
-  return hc > 0 ? static_cast<int>(hc) : 1;
-}
+int ResolveThreads(int threads) { return dimr::ResolveThreads(threads); }
 
 void ParallelFor(std::size_t n, int threads, const std::function<void(std::size_t)>& fn,
                  Progress* progress) {
-  const int nt = static_cast<int>(std::min<std::size_t>(ResolveThreads(threads), n));
-  std::atomic<std::size_t> next{0};
-  std::atomic<bool> failed{false};
-  std::exception_ptr error;
-  std::mutex error_mu;
-  auto worker = [&]() {
-    while (!failed.load()) {
-      const std::size_t i = next.fetch_add(1);
-      if (i >= n) break;
-      try {
-        fn(i);
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(error_mu);
-        if (!error) error = std::current_exception();
-        failed = true;
-      }
-      if (progress) progress->Tick();
-    }
-  };
-  if (nt <= 1) {
-    worker();
+  if (progress == nullptr) {
+    dimr::ParallelFor(n, threads, fn);
   } else {
-    std::vector<std::thread> pool;
-    for (int t = 0; t < nt; ++t) pool.emplace_back(worker);
-    for (auto& th : pool) th.join();
+    dimr::ParallelFor(n, threads, fn, [progress] { progress->Tick(); });
   }
-  if (error) std::rethrow_exception(error);
 }
 
 }  // namespace dimr::eval

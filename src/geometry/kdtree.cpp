@@ -6,8 +6,8 @@
 #include <limits>
 #include <queue>
 #include <string>
-#include <thread>
 
+#include "dimr/core/parallel.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::geometry {
@@ -188,23 +188,7 @@ std::vector<double> NearestDistances(const std::vector<Vec3>& queries, const KdT
     for (std::size_t i = begin; i < end; ++i) out[i] = std::sqrt(target.Nearest(queries[i]).second);
   };
   constexpr std::size_t kMinChunk = 2048;
-  const std::size_t hw = std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t threads =
-      std::min<std::size_t>({hw, 64, (queries.size() + kMinChunk - 1) / kMinChunk});
-  if (threads <= 1) {
-    work(0, queries.size());
-    return out;
-  }
-  std::vector<std::thread> pool;
-  pool.reserve(threads - 1);
-  const std::size_t chunk = (queries.size() + threads - 1) / threads;
-  for (std::size_t t = 1; t < threads; ++t) {
-    const std::size_t b = std::min(queries.size(), t * chunk);
-    const std::size_t e = std::min(queries.size(), b + chunk);
-    pool.emplace_back(work, b, e);
-  }
-  work(0, std::min(queries.size(), chunk));
-  for (std::thread& th : pool) th.join();
+  ParallelRanges(queries.size(), 0, kMinChunk, work);
   return out;
 }
 

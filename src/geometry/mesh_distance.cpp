@@ -5,8 +5,8 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <thread>
 
+#include "dimr/core/parallel.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::geometry {
@@ -37,25 +37,6 @@ inline double BoxDistance2(const AABB& box, const Vec3& p) {
     d2 += d * d;
   }
   return d2;
-}
-
-template <typename Fn>
-void ParallelChunks(std::size_t n, std::size_t min_chunk, const Fn& fn) {
-  const std::size_t hw = std::max(1u, std::thread::hardware_concurrency());
-  const std::size_t threads = std::min<std::size_t>({hw, 64, (n + min_chunk - 1) / min_chunk});
-  if (threads <= 1) {
-    fn(std::size_t{0}, n);
-    return;
-  }
-  const std::size_t chunk = (n + threads - 1) / threads;
-  std::vector<std::thread> pool;
-  pool.reserve(threads - 1);
-  for (std::size_t t = 1; t < threads; ++t) {
-    const std::size_t b = std::min(n, t * chunk);
-    pool.emplace_back(fn, b, std::min(n, b + chunk));
-  }
-  fn(std::size_t{0}, std::min(n, chunk));
-  for (std::thread& th : pool) th.join();
 }
 
 // A triangle is treated as degenerate (collapsed to a segment or a point, or so flat that its
@@ -310,7 +291,7 @@ ClosestPoint MeshDistance::Query(const Vec3& p) const {
 std::vector<double> MeshDistance::Distances(const std::vector<Vec3>& points) const {
   std::vector<double> out(points.size(), kInf);
   if (tris_.empty() || points.empty()) return out;
-  ParallelChunks(points.size(), 1024, [&](std::size_t b, std::size_t e) {
+  ParallelRanges(points.size(), 0, 1024, [&](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) out[i] = Query(points[i]).distance;
   });
   return out;

@@ -12,7 +12,6 @@
 #include <torch/torch.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -22,6 +21,7 @@
 #include <sstream>
 
 #include "dimr/core/config_fields.h"
+#include "dimr/core/timing.h"
 #include "dimr/geometry/error.h"
 #include "dimr/nn/model_archive.h"
 
@@ -667,7 +667,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
       std::filesystem::remove(opt.best_path + ".txt");
     }
   }
-  const auto t_start = std::chrono::steady_clock::now();
+  const Stopwatch run_time;
   auto checkpoint = [&](int epoch_done) {
     if (opt.checkpoint_path.empty()) return;
     SaveTrainingCheckpoint(*net, optimizer, opt.checkpoint_path, "bsp_cvae",
@@ -677,7 +677,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
 
   for (int epoch = start_epoch; epoch < total_epochs; ++epoch) {
     if (opt.phase0_minutes > 0 && epoch < phase0_end &&
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count() / 60.0 >=
+        run_time.ElapsedSeconds() / 60.0 >=
             opt.phase0_minutes) {
       std::fprintf(stderr, "phase 0 time budget reached after %d epochs\n", epoch);
       total_epochs -= phase0_end - epoch;
@@ -700,7 +700,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     std::shuffle(order.begin(), order.end(), rng);
     double recon_sum = 0, kl_sum = 0, latent_sum = 0;
     int batches = 0;
-    const auto t0 = std::chrono::steady_clock::now();
+    const Stopwatch epoch_time;
     for (std::size_t start = 0; start < order.size(); start += opt.batch_size) {
       std::vector<std::size_t> idx(order.begin() + start,
                                    order.begin() + std::min(order.size(), start + opt.batch_size));
@@ -785,11 +785,11 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     entry.kl = batches ? kl_sum / batches : 0;
     entry.latent_mse = batches ? latent_sum / batches : 0;
     entry.beta = beta;
-    entry.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    entry.seconds = epoch_time.ElapsedSeconds();
     net->eval();
     const bool last = epoch + 1 == total_epochs;
     const double minutes =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count() / 60.0;
+        run_time.ElapsedSeconds() / 60.0;
     const bool out_of_time = opt.max_minutes > 0 && minutes > opt.max_minutes;
     if (!val.samples.empty() &&
         ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {

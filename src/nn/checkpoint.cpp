@@ -7,13 +7,13 @@
 
 #include <cstdint>
 #include <cstring>
-#include <fstream>
 #include <map>
 #include <set>
 #include <sstream>
 
-#include "dimr/geometry/error.h"
-#include "dimr/geometry/hash.h"
+#include "dimr/core/binary_io.h"
+#include "dimr/core/error.h"
+#include "dimr/core/hash.h"
 
 namespace dimr::nn {
 namespace {
@@ -31,45 +31,6 @@ std::string ShapeStr(at::IntArrayRef s) {
   return os.str();
 }
 
-template <typename T>
-void Put(std::string& buf, T v) {
-  buf.append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
-
-class Reader {
- public:
-  Reader(const std::string& path, const std::string& data, size_t end)
-      : path_(path), data_(data), end_(end) {}
-  template <typename T>
-  T Get(const char* what) {
-    Need(sizeof(T), what);
-    T v;
-    std::memcpy(&v, data_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return v;
-  }
-  const char* Bytes(size_t n, const char* what) {
-    Need(n, what);
-    const char* p = data_.data() + pos_;
-    pos_ += n;
-    return p;
-  }
-  size_t pos() const { return pos_; }
-
- private:
-  void Need(size_t n, const char* what) {
-    if (n > end_ - pos_) {
-      throw ParseError(path_, std::string("truncated: ") + what + " needs " + std::to_string(n) +
-                                  " bytes at offset " + std::to_string(pos_) + ", only " +
-                                  std::to_string(end_ - pos_) + " left");
-    }
-  }
-  const std::string& path_;
-  const std::string& data_;
-  size_t end_;
-  size_t pos_ = 0;
-};
-
 }  // namespace
 
 NamedTensors ModuleState(const torch::nn::Module& module) {
@@ -80,9 +41,10 @@ NamedTensors ModuleState(const torch::nn::Module& module) {
 }
 
 void WriteCheckpoint(const NamedTensors& tensors, const std::string& path, bool half) {
-  std::string buf(kMagic, sizeof(kMagic));
-  Put<uint32_t>(buf, kVersion);
-  Put<uint64_t>(buf, tensors.size());
+  BinaryWriter buf;
+  buf.PutBytes(kMagic, sizeof(kMagic));
+  buf.Put<uint32_t>(kVersion);
+  buf.Put<uint64_t>(tensors.size());
   for (const auto& [name, tensor] : tensors) {
     at::Tensor t = tensor.detach().to(at::kCPU).contiguous();
     uint8_t code;
@@ -104,26 +66,21 @@ void WriteCheckpoint(const NamedTensors& tensors, const std::string& path, bool 
       throw InvalidArgument("checkpoint: tensor '" + name + "' has unsupported dtype " +
                             std::string(c10::toString(t.scalar_type())));
     }
-    Put<uint32_t>(buf, static_cast<uint32_t>(name.size()));
-    buf.append(name);
-    Put<uint8_t>(buf, code);
-    Put<uint32_t>(buf, static_cast<uint32_t>(t.dim()));
-    for (int64_t d : t.sizes()) Put<int64_t>(buf, d);
+    buf.Put<uint32_t>(static_cast<uint32_t>(name.size()));
+    buf.PutString(name);
+    buf.Put<uint8_t>(code);
+    buf.Put<uint32_t>(static_cast<uint32_t>(t.dim()));
+    for (int64_t d : t.sizes()) buf.Put<int64_t>(d);
     const uint64_t nbytes = static_cast<uint64_t>(t.numel()) * t.element_size();
-    Put<uint64_t>(buf, nbytes);
-    buf.append(static_cast<const char*>(t.data_ptr()), nbytes);
+    buf.Put<uint64_t>(nbytes);
+    buf.PutBytes(t.data_ptr(), nbytes);
   }
-  Put<uint64_t>(buf, geometry::Fnv1a(buf.data(), buf.size()));
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw ParseError(path, "cannot open for writing");
-  f.write(buf.data(), static_cast<std::streamsize>(buf.size()));
-  if (!f) throw ParseError(path, "write failed");
+  buf.Put<uint64_t>(Fnv1a(buf.bytes().data(), buf.size()));
+  buf.WriteFile(path);
 }
 
 NamedTensors ReadCheckpoint(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw ParseError(path, "cannot open checkpoint");
-  std::string data((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string data = ReadFileBytes(path);
   if (data.size() < sizeof(kMagic) + 4 + 8 + 8) {
     throw ParseError(path, "truncated: " + std::to_string(data.size()) +
                                " bytes is smaller than a checkpoint header");
@@ -132,7 +89,7 @@ NamedTensors ReadCheckpoint(const std::string& path) {
     throw ParseError(path, "not a dimr checkpoint (bad magic)");
   }
   const size_t body = data.size() - 8;
-  Reader r(path, data, body);
+  BinaryReader r(path, std::string_view(data.data(), body));  // the checksum is not read by r
   r.Bytes(sizeof(kMagic), "magic");
   const uint32_t version = r.Get<uint32_t>("version");
   if (version != kVersion) {
@@ -140,9 +97,7 @@ NamedTensors ReadCheckpoint(const std::string& path) {
   }
   const uint64_t count = r.Get<uint64_t>("tensor count");
   // Each entry needs at least 4 + 1 + 4 + 8 bytes.
-  if (count > body / 17) {
-    throw ParseError(path, "tensor count " + std::to_string(count) + " exceeds the file size");
-  }
+  r.Count(count, 17, "tensors");
   NamedTensors out;
   std::set<std::string> seen;
   for (uint64_t i = 0; i < count; ++i) {
@@ -199,7 +154,7 @@ NamedTensors ReadCheckpoint(const std::string& path) {
   }
   uint64_t stored;
   std::memcpy(&stored, data.data() + body, 8);
-  if (stored != geometry::Fnv1a(data.data(), body)) {
+  if (stored != Fnv1a(data.data(), body)) {
     throw ParseError(path, "checksum mismatch (file corrupt)");
   }
   return out;

@@ -3,16 +3,14 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <iterator>
 #include <random>
 #include <set>
 #include <string>
 
-#include "dimr/geometry/error.h"
-#include "dimr/geometry/hash.h"
+#include "dimr/core/binary_io.h"
+#include "dimr/core/error.h"
+#include "dimr/core/hash.h"
 
 namespace dimr::pipeline {
 namespace {
@@ -21,11 +19,6 @@ constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'P', 'O', 'O', 'L'};
 constexpr std::uint32_t kVersion = 1;        // codes only
 constexpr std::uint32_t kVersionMeshes = 2;  // codes + a mesh path per entry
 constexpr std::uint32_t kMaxMeshPathLength = 4096;
-
-template <typename T>
-void Put(std::string* out, const T& v) {
-  out->append(reinterpret_cast<const char*>(&v), sizeof(T));
-}
 
 }  // namespace
 
@@ -48,11 +41,11 @@ void ShapePool::Add(PoolEntry entry) {
 }
 
 std::string ShapePool::ContentHash() const {
-  std::uint64_t h = geometry::Fnv1a(&latent_dim_, sizeof(latent_dim_));
+  std::uint64_t h = Fnv1a(&latent_dim_, sizeof(latent_dim_));
   for (const auto& e : entries_) {
-    h = geometry::Fnv1a(e.model_id.data(), e.model_id.size(), h);
-    h = geometry::Fnv1a(&e.cad_class, sizeof(e.cad_class), h);
-    h = geometry::Fnv1a(e.code.data(), static_cast<std::size_t>(e.code.size()) * sizeof(float), h);
+    h = Fnv1a(e.model_id, h);
+    h = Fnv1a(&e.cad_class, sizeof(e.cad_class), h);
+    h = Fnv1a(e.code.data(), static_cast<std::size_t>(e.code.size()) * sizeof(float), h);
   }
   char buf[17];
   std::snprintf(buf, sizeof(buf), "%016llx", static_cast<unsigned long long>(h));
@@ -160,94 +153,58 @@ int ShapePool::NumWithMeshes() const {
 
 void ShapePool::Save(const std::string& path) const {
   const bool meshes = NumWithMeshes() > 0;
-  std::string out;
-  out.append(kMagic, sizeof(kMagic));
-  Put(&out, meshes ? kVersionMeshes : kVersion);
-  Put(&out, static_cast<std::int32_t>(latent_dim_));
-  Put(&out, static_cast<std::uint64_t>(entries_.size()));
-  const std::string hash = ContentHash();
-  out.append(hash);
+  BinaryWriter out;
+  out.PutBytes(kMagic, sizeof(kMagic));
+  out.Put(meshes ? kVersionMeshes : kVersion);
+  out.Put(static_cast<std::int32_t>(latent_dim_));
+  out.Put(static_cast<std::uint64_t>(entries_.size()));
+  out.PutString(ContentHash());
   for (const auto& e : entries_) {
-    Put(&out, static_cast<std::int32_t>(e.cad_class));
-    Put(&out, static_cast<std::uint32_t>(e.model_id.size()));
-    out.append(e.model_id);
-    out.append(reinterpret_cast<const char*>(e.code.data()),
-               static_cast<std::size_t>(e.code.size()) * sizeof(float));
+    out.Put(static_cast<std::int32_t>(e.cad_class));
+    out.Put(static_cast<std::uint32_t>(e.model_id.size()));
+    out.PutString(e.model_id);
+    out.PutArray(e.code.data(), static_cast<std::size_t>(e.code.size()));
     if (meshes) {
-      Put(&out, static_cast<std::uint32_t>(e.mesh_path.size()));
-      out.append(e.mesh_path);
+      out.Put(static_cast<std::uint32_t>(e.mesh_path.size()));
+      out.PutString(e.mesh_path);
     }
   }
-  std::ofstream f(path, std::ios::binary | std::ios::trunc);
-  if (!f) throw Error("cannot open '" + path + "' for writing");
-  f.write(out.data(), static_cast<std::streamsize>(out.size()));
-  if (!f) throw Error("failed writing '" + path + "'");
+  out.WriteFile(path);
 }
 
 ShapePool ShapePool::Load(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw ParseError(path, "cannot open file");
-  const std::string b((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
-  std::size_t pos = 0;
-  auto need = [&](std::size_t n, const std::string& what) {
-    if (n > b.size() - pos) throw ParseError(path, what + ": truncated file");
-  };
-  auto get = [&](auto* v, const std::string& what) {
-    need(sizeof(*v), what);
-    std::memcpy(v, b.data() + pos, sizeof(*v));
-    pos += sizeof(*v);
-  };
-  need(sizeof(kMagic), "header");
-  if (std::memcmp(b.data(), kMagic, sizeof(kMagic)) != 0) {
-    throw ParseError(path, "not a dimr shape pool (bad magic)");
+  const std::string bytes = ReadFileBytes(path);
+  BinaryReader r(path, bytes);
+  r.ExpectMagic(std::string_view(kMagic, sizeof(kMagic)), "a dimr shape pool");
+  const auto version = r.Get<std::uint32_t>("version");
+  if (version != kVersion && version != kVersionMeshes) {
+    r.Fail("unsupported pool version " + std::to_string(version));
   }
-  pos += sizeof(kMagic);
-  std::uint32_t version = 0;
-  get(&version, "version");
-  if (version != kVersion && version != kVersionMeshes)
-    throw ParseError(path, "unsupported pool version " + std::to_string(version));
   const bool meshes = version == kVersionMeshes;
   const std::filesystem::path folder = std::filesystem::path(path).parent_path();
-  std::int32_t dim = 0;
-  get(&dim, "latent size");
-  if (dim < 1 || dim > 65536)
-    throw ParseError(path, "latent size " + std::to_string(dim) + " out of range");
-  std::uint64_t count = 0;
-  get(&count, "entry count");
-  const std::size_t code_bytes = static_cast<std::size_t>(2 * dim) * sizeof(float);
-  if (count > b.size() / (code_bytes + 8)) {
-    throw ParseError(path,
-                     "claims " + std::to_string(count) + " entries, more than the file holds");
-  }
-  need(16, "content hash");
-  const std::string stored_hash = b.substr(pos, 16);
-  pos += 16;
+  const auto dim = r.Get<std::int32_t>("latent size");
+  if (dim < 1 || dim > 65536) r.Fail("latent size " + std::to_string(dim) + " out of range");
+  const std::size_t code_floats = 2 * static_cast<std::size_t>(dim);
+  // Each entry holds at least its class, id length and code.
+  const std::size_t count =
+      r.Count(r.Get<std::uint64_t>("entry count"), 8 + code_floats * sizeof(float), "entries");
+  const std::string stored_hash = r.GetString(16, "content hash");
   ShapePool pool(dim);
-  for (std::uint64_t i = 0; i < count; ++i) {
+  for (std::size_t i = 0; i < count; ++i) {
     const std::string where = "entry " + std::to_string(i);
     PoolEntry e;
-    std::int32_t cls = 0;
-    std::uint32_t len = 0;
-    get(&cls, where + " class");
-    get(&len, where + " id length");
-    need(len, where + " id");
-    e.model_id = b.substr(pos, len);
-    pos += len;
-    e.cad_class = cls;
-    need(code_bytes, where + " code");
-    e.code.resize(2 * dim);
-    std::memcpy(e.code.data(), b.data() + pos, code_bytes);
-    pos += code_bytes;
+    e.cad_class = r.Get<std::int32_t>((where + " class").c_str());
+    const auto len = r.Get<std::uint32_t>((where + " id length").c_str());
+    e.model_id = r.GetString(len, (where + " id").c_str());
+    e.code.resize(static_cast<Eigen::Index>(code_floats));
+    r.GetInto(e.code.data(), code_floats, (where + " code").c_str());
     if (meshes) {
-      std::uint32_t mlen = 0;
-      get(&mlen, where + " mesh path length");
+      const auto mlen = r.Get<std::uint32_t>((where + " mesh path length").c_str());
       if (mlen > kMaxMeshPathLength) {
         throw ParseError(path, where + ": mesh path length " + std::to_string(mlen) + " exceeds " +
                                    std::to_string(kMaxMeshPathLength));
       }
-      need(mlen, where + " mesh path");
-      e.mesh_path = b.substr(pos, mlen);
-      pos += mlen;
+      e.mesh_path = r.GetString(mlen, (where + " mesh path").c_str());
       if (!e.mesh_path.empty() && std::filesystem::path(e.mesh_path).is_relative()) {
         e.mesh_path = (folder / e.mesh_path).string();
       }
@@ -258,7 +215,7 @@ ShapePool ShapePool::Load(const std::string& path) {
       throw ParseError(path, where + ": " + err.what());
     }
   }
-  if (pos != b.size()) throw ParseError(path, "trailing bytes after the last entry");
+  r.ExpectEnd("the last entry");
   if (pool.ContentHash() != stored_hash) {
     throw ParseError(path, "content hash mismatch (stored " + stored_hash + ", computed " +
                                pool.ContentHash() + "): the file is corrupt");

@@ -2,7 +2,6 @@
 // `dimr stage1 inspect` (per-split statistics of a cache or a scans folder).
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -12,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "dimr/core/timing.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/synthscan.h"
 #include "dimr/geometry/error.h"
@@ -121,7 +121,7 @@ struct PrepareArgs {
 };
 
 void RunPrepare(const PrepareArgs& a) {
-  const auto t0 = std::chrono::steady_clock::now();
+  const Stopwatch elapsed;
   const std::string dir = ScansFolder(a.scans);
   const std::vector<std::string> names =
       a.scene_list.empty() ? std::vector<std::string>() : ReadSceneList(a.scene_list);
@@ -137,7 +137,7 @@ void RunPrepare(const PrepareArgs& a) {
   if (samples.empty()) throw InvalidArgument("no scene folders in '" + dir + "'");
   nn::WriteStage1Samples(a.out, samples);
   const Stats s = SplitStats(samples).at("all");
-  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const double secs = elapsed.ElapsedSeconds();
   std::printf(
       "wrote %s: %lld scenes, %lld points (%lld ignored), %lld instances, %lld CAD "
       "instances (%.1f s)\n",

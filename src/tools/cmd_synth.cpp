@@ -2,7 +2,6 @@
 // ShapeNet tree, optional rosbags, the synthscan.yaml index).
 // `dimr bench synth`: the same pipeline timed, reporting scenes per minute and the realism
 // statistics next to ScanNet's.
-#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <cstdlib>
@@ -16,6 +15,8 @@
 #include <thread>
 #include <vector>
 
+#include "dimr/core/parallel.h"
+#include "dimr/core/timing.h"
 #include "dimr/data/labels.h"
 #include "dimr/data/scan2cad_io.h"
 #include "dimr/data/scannet_io.h"
@@ -98,12 +99,12 @@ std::size_t FolderBytes(const fs::path& dir) {
 
 class Progress {
  public:
-  Progress(int total, bool quiet) : total_(total), quiet_(quiet), start_(Clock::now()) {}
+  Progress(int total, bool quiet) : total_(total), quiet_(quiet) {}
   void Tick() {
     std::lock_guard<std::mutex> lock(mu_);
     ++done_;
     if (quiet_) return;
-    const double s = std::chrono::duration<double>(Clock::now() - start_).count();
+    const double s = elapsed_.ElapsedSeconds();
     const int width = 30;
     const int fill = total_ ? width * done_ / total_ : width;
     std::string bar(fill, '#');
@@ -116,10 +117,9 @@ class Progress {
   }
 
  private:
-  using Clock = std::chrono::steady_clock;
   int total_, done_ = 0;
   bool quiet_;
-  Clock::time_point start_;
+  dimr::Stopwatch elapsed_;
   std::mutex mu_;
 };
 
@@ -157,70 +157,48 @@ RunResult RunSynth(const SynthOptions& o) {
 
   std::vector<int> indices;
   for (int i = shard; i < o.scenes; i += shards) indices.push_back(i);
-  const int jobs = std::max(
-      1, std::min<int>(static_cast<int>(indices.size()),
-                       o.jobs > 0
-                           ? o.jobs
-                           : static_cast<int>(std::max(1u, std::thread::hardware_concurrency()))));
+  const int jobs =
+      std::max(1, std::min<int>(static_cast<int>(indices.size()), dimr::ResolveThreads(o.jobs)));
   std::vector<SceneSummary> summaries(indices.size());
   std::vector<dimr::data::Scan2CadScene> s2c(indices.size());
   std::map<std::string, dimr::data::CadModel> models;
   std::mutex mu;
-  std::atomic<std::size_t> next{0};
-  std::exception_ptr error;
   Progress progress(static_cast<int>(indices.size()), o.quiet);
-  const auto t0 = std::chrono::steady_clock::now();
-  auto worker = [&]() {
-    for (;;) {
-      const std::size_t k = next.fetch_add(1);
-      if (k >= indices.size()) return;
-      {
-        std::lock_guard<std::mutex> lock(mu);
-        if (error) return;
-      }
-      try {
-        const int i = indices[k];
-        const auto ts = std::chrono::steady_clock::now();
-        const std::uint64_t seed = dimr::data::SceneSeed(o.seed, o.split, i);
-        const std::string name = dimr::data::SceneName(o.split, i);
-        const GeneratedScene g = dimr::data::GenerateScene(config, seed, name);
-        dimr::data::WriteScanNetScene((out / "scans").string(), g.scene);
+  const dimr::Stopwatch elapsed;
+  // Every scene writes its own files and slots; a failure stops the others after their scene.
+  dimr::ParallelFor(indices.size(), jobs, [&](std::size_t k) {
+    const int i = indices[k];
+    const dimr::Stopwatch scene_time;
+    const std::uint64_t seed = dimr::data::SceneSeed(o.seed, o.split, i);
+    const std::string name = dimr::data::SceneName(o.split, i);
+    const GeneratedScene g = dimr::data::GenerateScene(config, seed, name);
+    dimr::data::WriteScanNetScene((out / "scans").string(), g.scene);
 #ifdef DIMR_HAVE_ROS
-        if (o.bags) {
-          dimr::ros1::BagWriterOptions bo;
-          bo.map_cloud_every = o.map_cloud_every;
-          dimr::ros1::WriteScanBag((out / "bags" / (name + ".bag")).string(), g.scan, bo);
-        }
+    if (o.bags) {
+      dimr::ros1::BagWriterOptions bo;
+      bo.map_cloud_every = o.map_cloud_every;
+      dimr::ros1::WriteScanBag((out / "bags" / (name + ".bag")).string(), g.scan, bo);
+    }
 #endif
-        if (o.render) {
-          const fs::path dir = out / "renders";
-          for (const bool inst : {false, true}) {
-            const std::string stem = (dir / (name + (inst ? "_instances" : ""))).string();
-            const dimr::data::RgbImage img = dimr::data::RenderTopDown(g.scene, 0.01, inst);
-            dimr::tools::WritePng(stem + ".png", img.width, img.height, img.rgb);
-          }
-        }
-        SceneSummary sum = dimr::data::Summarize(g);
-        sum.seed = seed;
-        sum.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
-        summaries[k] = std::move(sum);
-        s2c[k] = dimr::data::ToScan2Cad(g.scene);
-        {
-          std::lock_guard<std::mutex> lock(mu);
-          for (const auto& m : g.cad_models) models.emplace(m->model_id, *m);
-        }
-        progress.Tick();
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mu);
-        if (!error) error = std::current_exception();
-        return;
+    if (o.render) {
+      const fs::path dir = out / "renders";
+      for (const bool inst : {false, true}) {
+        const std::string stem = (dir / (name + (inst ? "_instances" : ""))).string();
+        const dimr::data::RgbImage img = dimr::data::RenderTopDown(g.scene, 0.01, inst);
+        dimr::tools::WritePng(stem + ".png", img.width, img.height, img.rgb);
       }
     }
-  };
-  std::vector<std::thread> pool;
-  for (int j = 0; j < jobs; ++j) pool.emplace_back(worker);
-  for (auto& t : pool) t.join();
-  if (error) std::rethrow_exception(error);
+    SceneSummary sum = dimr::data::Summarize(g);
+    sum.seed = seed;
+    sum.seconds = scene_time.ElapsedSeconds();
+    summaries[k] = std::move(sum);
+    s2c[k] = dimr::data::ToScan2Cad(g.scene);
+    {
+      std::lock_guard<std::mutex> lock(mu);
+      for (const auto& m : g.cad_models) models.emplace(m->model_id, *m);
+    }
+    progress.Tick();
+  });
 
   const std::string suffix =
       shards == 1 ? "" : ".shard-" + std::to_string(shard) + "-of-" + std::to_string(shards);
@@ -232,7 +210,7 @@ RunResult RunSynth(const SynthOptions& o) {
   dimr::data::WriteSynthIndex((out / ("synthscan" + suffix + ".yaml")).string(), config, o.seed,
                               o.split, shard, shards, summaries);
   RunResult r;
-  r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  r.seconds = elapsed.ElapsedSeconds();
   r.summaries = std::move(summaries);
   r.bytes = FolderBytes(out);
   return r;

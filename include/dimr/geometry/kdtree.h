@@ -54,7 +54,7 @@ class KdTree {
 };
 
 // For each query, the Euclidean (not squared) distance to the nearest point of `target`
-// (+inf if the target is empty). Parallel over chunks of queries with std::thread.
+// (+inf if the target is empty). Parallel over chunks of queries (dimr::ParallelRanges).
 std::vector<double> NearestDistances(const std::vector<Vec3>& queries, const KdTree& target);
 
 }  // namespace dimr::geometry
