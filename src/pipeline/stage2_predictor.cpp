@@ -6,6 +6,7 @@
 
 #include "dimr/geometry/error.h"
 #include "dimr/pipeline/clustering.h"
+#include "dimr/pipeline/stage1_segmenter.h"
 
 namespace dimr::pipeline {
 
@@ -87,6 +88,23 @@ std::vector<Stage2Detection> Stage2Predictor::Detect(const Stage2SceneInput& sce
                                                      const std::vector<ScoredInstance>& proposals,
                                                      const Stage2FilterConfig& filter) const {
   return FilterDetections(Predict(scene, proposals), filter);
+}
+
+std::vector<Stage2Detection> Stage2Predictor::Predict(const std::vector<Eigen::Vector3f>& points,
+                                                      const Stage1Result& stage1) const {
+  if (stage1.features.empty() && !stage1.instances.empty()) {
+    throw InvalidArgument(
+        "stage2 predict: the stage-1 result has no point features (Segment(input, "
+        "with_features = true))");
+  }
+  Stage2SceneInput in{&points, &stage1.features, stage1.feature_dim, stage1.network_origin.z()};
+  return Predict(in, stage1.instances);
+}
+
+std::vector<Stage2Detection> Stage2Predictor::Detect(const std::vector<Eigen::Vector3f>& points,
+                                                     const Stage1Result& stage1,
+                                                     const Stage2FilterConfig& filter) const {
+  return FilterDetections(Predict(points, stage1), filter);
 }
 
 }  // namespace dimr::pipeline

@@ -8,6 +8,7 @@
 
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage2_model.h"
+#include "dimr/pipeline/stage1_segmenter.h"
 #include "dimr/pipeline/stage2_predictor.h"
 
 namespace dimr::pipeline {
@@ -180,6 +181,18 @@ TEST(Stage2Predictor, ScoresBoxesAndFilter) {
   EXPECT_EQ(FilterDetections(d, filter).size(), 2u);
   filter.score_threshold = 1.0;
   EXPECT_TRUE(FilterDetections(d, filter).empty());
+  // The same through a stage-1 result (floor = the network origin's z).
+  Stage1Result r;
+  r.features = feats;
+  r.feature_dim = 3;
+  r.instances = props;
+  const auto viaresult = predictor.Predict(pts, r);
+  ASSERT_EQ(viaresult.size(), 3u);
+  EXPECT_FLOAT_EQ(static_cast<float>(viaresult[1].score), static_cast<float>(d[1].score));
+  r.network_origin.z() = -0.5f;  // another floor: the proposal is higher above it
+  EXPECT_NE(predictor.Predict(pts, r)[1].score, d[1].score);
+  r.features.clear();
+  EXPECT_THROW(predictor.Predict(pts, r), InvalidArgument);
   // A stage-1 model of another width is refused with a clear message.
   Stage2SceneInput wrong{&pts, &feats, 4, 0.0f};
   EXPECT_THROW(predictor.Predict(wrong, props), InvalidArgument);

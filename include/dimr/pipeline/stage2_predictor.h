@@ -15,6 +15,8 @@
 
 namespace dimr::pipeline {
 
+struct Stage1Result;  // stage1_segmenter.h
+
 struct Stage2FilterConfig {
   double score_threshold = 0.05;  // keep sigmoid(score) > threshold (released config; paper 0.09)
   int min_points = 100;           // keep proposals with > min_points points
@@ -55,6 +57,14 @@ class Stage2Predictor {
   // Predict, then the filter: score, size, NMS; kept detections in descending score order.
   std::vector<Stage2Detection> Detect(const Stage2SceneInput& scene,
                                       const std::vector<ScoredInstance>& proposals,
+                                      const Stage2FilterConfig& filter) const;
+  // The same on stage 1's result for `points` (Stage1Segmenter::Segment(input, true): its
+  // instances, its features, the floor = network_origin.z()). Throws dimr::InvalidArgument
+  // when the result has no features (Segment without with_features).
+  std::vector<Stage2Detection> Predict(const std::vector<Eigen::Vector3f>& points,
+                                       const Stage1Result& stage1) const;
+  std::vector<Stage2Detection> Detect(const std::vector<Eigen::Vector3f>& points,
+                                      const Stage1Result& stage1,
                                       const Stage2FilterConfig& filter) const;
 
  private:
