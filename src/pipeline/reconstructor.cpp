@@ -95,8 +95,7 @@ Reconstructor::Reconstructor(const ReconstructorConfig& config) {
   // Ablation without multi-scale clustering: one pass on the shifted points at 3 cm.
   if (!config.multi_scale) s1.passes = {ClusterPass{true, 0.03}};
   seg.set_config(s1);
-  impl_ = std::make_unique<Impl>(config, std::move(seg),
-                                 Stage2Predictor::Load(config.stage2_model),
+  impl_ = std::make_unique<Impl>(config, std::move(seg), Stage2Predictor::Load(config.stage2_model),
                                  BspDecoder::Load(config.bsp_model));
   std::error_code ec;
   const bool need_pool = config.mode != ReconstructionMode::kGeneration;
@@ -117,7 +116,8 @@ Reconstructor::Reconstructor(Reconstructor&&) noexcept = default;
 Reconstructor& Reconstructor::operator=(Reconstructor&&) noexcept = default;
 
 void Reconstructor::SetMode(ReconstructionMode mode, int k) {
-  if (k < 1 || k > 64) throw InvalidArgument("SetMode: k must be in [1, 64], got " + std::to_string(k));
+  if (k < 1 || k > 64)
+    throw InvalidArgument("SetMode: k must be in [1, 64], got " + std::to_string(k));
   if (mode != ReconstructionMode::kGeneration && !impl_->pool) {
     throw InvalidArgument(std::string("SetMode: mode ") + ReconstructionModeName(mode) +
                           " needs a shape pool (config key pool)");
@@ -218,8 +218,7 @@ void Reconstructor::Impl::MakeShape(InstanceResult* inst, const std::vector<geom
                                static_cast<std::uint64_t>(j) + 1;
     h.latent = SampleCode(inst->latent, seed);
     const Eigen::ArrayXf sigma = (0.5f * inst->latent.tail(d_lat).array()).exp();
-    const Eigen::ArrayXf eps =
-        (h.latent.head(d_lat) - inst->latent.head(d_lat)).array() / sigma;
+    const Eigen::ArrayXf eps = (h.latent.head(d_lat) - inst->latent.head(d_lat)).array() / sigma;
     h.score = inst->score * std::exp(-0.5 * static_cast<double>(eps.square().sum()) / d_lat);
     h.mesh = DecodePlaced(h.latent, inst->cad_class, inst->box, t);
     if (config.icp.enabled && !h.mesh.empty()) {
@@ -331,8 +330,8 @@ SceneResult Reconstructor::Reconstruct(const PointCloudInput& input) const {
     }
     if (impl_->stage1.uses_color() && !cloud.has_colors()) {
       cloud.colors.assign(cloud.size(), Eigen::Vector3f::Constant(0.5f));
-      result.warnings.push_back(name +
-                                ": no colours; the stage-1 model uses colour, neutral grey assumed");
+      result.warnings.push_back(
+          name + ": no colours; the stage-1 model uses colour, neutral grey assumed");
     }
     cloud.Validate();
   }

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "dimr/geometry/error.h"
+#include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/reconstructor.h"
 #include "tools/command_registry.h"
 #include "tools/reconstruct_io.h"
@@ -73,15 +74,7 @@ std::string CpuModel() {
   return "unknown";
 }
 
-std::string KernelPath() {
-  const char* env = std::getenv("DIMR_SPARSE_KERNELS");
-  std::string path = env != nullptr && *env ? std::string(env) : std::string("auto");
-  __builtin_cpu_init();
-  const bool avx512 = __builtin_cpu_supports("avx512f");
-  const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
-  if (path == "auto") path += avx512 ? " (avx512 direct kernels)" : avx2 ? " (avx2)" : " (gemm)";
-  return path + "; cpu: avx512f " + (avx512 ? "yes" : "no") + ", avx2+fma " + (avx2 ? "yes" : "no");
-}
+std::string KernelPath() { return dimr::nn::SparseKernelsInUse(); }
 
 // The reported stages: name in the table -> timing keys summed.
 const std::vector<std::pair<std::string, std::vector<std::string>>>& Stages() {
@@ -101,7 +94,8 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& Stages() {
 }
 
 void RunBench(const BenchArgs& a) {
-  if (a.rooms.empty()) throw dimr::InvalidArgument("--rooms DIR (e.g. a SynthScan split) is required");
+  if (a.rooms.empty())
+    throw dimr::InvalidArgument("--rooms DIR (e.g. a SynthScan split) is required");
   if (a.points < 1000) throw dimr::InvalidArgument("--points must be >= 1000");
   std::vector<dimr::tools::InputScene> scenes = dimr::tools::ListInputScenes(a.rooms);
   if (static_cast<int>(scenes.size()) > a.count) scenes.resize(a.count);
@@ -128,9 +122,10 @@ void RunBench(const BenchArgs& a) {
     }
     inputs.push_back(std::move(in));
   }
-  std::printf("CPU: %s\nsparse kernel path: %s\nrooms: %zu from %s, %d points each (fewer if a "
-              "room has fewer)\n",
-              CpuModel().c_str(), KernelPath().c_str(), inputs.size(), a.rooms.c_str(), a.points);
+  std::printf(
+      "CPU: %s\nsparse kernel path: %s\nrooms: %zu from %s, %d points each (fewer if a "
+      "room has fewer)\n",
+      CpuModel().c_str(), KernelPath().c_str(), inputs.size(), a.rooms.c_str(), a.points);
   nlohmann::json out;
   out["cpu"] = CpuModel();
   out["kernel_path"] = KernelPath();
@@ -182,8 +177,9 @@ void RunBench(const BenchArgs& a) {
       out["runs"].push_back(run);
     }
   }
-  std::printf("\n(median over rooms; peak RSS is the process high-water mark so far; goals on 2 "
-              "cores: fast <= 500 ms, accurate <= 2000 ms, peak RSS <= 2048 MB)\n");
+  std::printf(
+      "\n(median over rooms; peak RSS is the process high-water mark so far; goals on 2 "
+      "cores: fast <= 500 ms, accurate <= 2000 ms, peak RSS <= 2048 MB)\n");
   if (!a.json_out.empty()) {
     std::ofstream f(a.json_out);
     f << out.dump(1) << "\n";
@@ -193,7 +189,8 @@ void RunBench(const BenchArgs& a) {
 
 void SetupBench(CLI::App& app) {
   auto a = std::make_shared<BenchArgs>();
-  app.add_option("--rooms", a->rooms, "rooms: SynthScan split, scans folder or a cloud")->required();
+  app.add_option("--rooms", a->rooms, "rooms: SynthScan split, scans folder or a cloud")
+      ->required();
   app.add_option("--count", a->count, "rooms to time")->capture_default_str();
   app.add_option("--points", a->points, "points per room (seeded random subset)")
       ->capture_default_str();

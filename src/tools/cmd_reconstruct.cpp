@@ -58,7 +58,8 @@ std::vector<double> ParseNumbers(const std::string& s, std::size_t n, const std:
     }
   }
   if (out.size() != n) {
-    throw dimr::InvalidArgument(flag + ": expected " + std::to_string(n) + " comma-separated numbers");
+    throw dimr::InvalidArgument(flag + ": expected " + std::to_string(n) +
+                                " comma-separated numbers");
   }
   return out;
 }
@@ -90,7 +91,8 @@ void RunReconstruct(ReconstructArgs& a) {
   }
   if (!(a.scale > 0) || !std::isfinite(a.scale)) throw dimr::InvalidArgument("--scale must be > 0");
   std::vector<dimr::tools::InputScene> scenes = dimr::tools::ListInputScenes(a.input);
-  if (a.max_scenes > 0 && static_cast<int>(scenes.size()) > a.max_scenes) scenes.resize(a.max_scenes);
+  if (a.max_scenes > 0 && static_cast<int>(scenes.size()) > a.max_scenes)
+    scenes.resize(a.max_scenes);
   const auto t_load = std::chrono::steady_clock::now();
   dimr::pipeline::Reconstructor rec(cfg);
   const double load_s =
@@ -115,7 +117,8 @@ void RunReconstruct(ReconstructArgs& a) {
                    : (fs::path(a.out) / dimr::pipeline::ReconstructionModeName(m)).string();
       };
       std::vector<dimr::geometry::TriangleMesh> gt;
-      if (!a.gt_meshes.empty() && !a.no_picture) gt = dimr::tools::ReadSceneGtMeshes(a.gt_meshes, s.name);
+      if (!a.gt_meshes.empty() && !a.no_picture)
+        gt = dimr::tools::ReadSceneGtMeshes(a.gt_meshes, s.name);
       const auto* gtp = a.gt_meshes.empty() ? nullptr : &gt;
       const auto written =
           dimr::tools::WriteSceneOutputs(out_of(modes[0]), s, r, !a.no_picture, gtp);
@@ -167,7 +170,8 @@ void SetupReconstruct(CLI::App& app) {
                  "generation | projection | retrieval, or a comma list (each into DIR/<mode>/; "
                  "the networks run once)")
       ->capture_default_str();
-  app.add_option("--preset", a->preset, "accurate (the stage-1 card's test-time augmentation) | fast")
+  app.add_option("--preset", a->preset,
+                 "accurate (the stage-1 card's test-time augmentation) | fast")
       ->capture_default_str();
   app.add_option("--k", a->k, "projection: pool neighbours")->capture_default_str();
   app.add_option("--samples", a->samples, "alternative shapes per object sampled from sigma")
@@ -177,9 +181,11 @@ void SetupReconstruct(CLI::App& app) {
   app.add_option("--stage1", c.stage1_model, "stage-1 weights")->capture_default_str();
   app.add_option("--stage2", c.stage2_model, "stage-2 weights")->capture_default_str();
   app.add_option("--bsp", c.bsp_model, "BSP decoder weights")->capture_default_str();
-  app.add_option("--pool", c.pool, "latent CAD pool (projection, retrieval)")->capture_default_str();
-  app.add_option("--pool-meshes", c.pool_meshes,
-                 "retrieval: ShapeNet-style tree of the pool's CAD models (dimr export pool-meshes)");
+  app.add_option("--pool", c.pool, "latent CAD pool (projection, retrieval)")
+      ->capture_default_str();
+  app.add_option(
+      "--pool-meshes", c.pool_meshes,
+      "retrieval: ShapeNet-style tree of the pool's CAD models (dimr export pool-meshes)");
   app.add_option("--score-threshold", c.score_threshold, "keep sigmoid(score) > this")
       ->capture_default_str();
   app.add_option("--min-points", c.min_points, "keep proposals with more points")
@@ -197,8 +203,9 @@ void SetupReconstruct(CLI::App& app) {
                "one clustering pass (shifted, 3 cm) instead of multi-scale (ablation)");
   app.add_flag("--no-picture", a->no_picture, "do not render vis/{scene}.png");
   app.add_option("--max-scenes", a->max_scenes, "only the first N scenes of INPUT");
-  app.add_option("--gt-meshes", a->gt_meshes,
-                 "evaluation GT folder (dimr export gt .../meshes): adds a GT panel to the pictures");
+  app.add_option(
+      "--gt-meshes", a->gt_meshes,
+      "evaluation GT folder (dimr export gt .../meshes): adds a GT panel to the pictures");
   app.add_flag("--quiet", a->quiet, "print errors only");
   app.callback([a]() { RunReconstruct(*a); });
 }

@@ -205,9 +205,9 @@ TEST_F(ReconstructorRoom, RetrievalReturnsTheRoomsOwnCadModelWhenItIsInThePool) 
   for (const auto& g : gt_) {
     if (added[g.model_id]) continue;
     added[g.model_id] = true;
-    const std::string obj = (dir_ / "split" / "shapenet" / g.synset / g.model_id / "models" /
-                             "model_normalized.obj")
-                                .string();
+    const std::string obj =
+        (dir_ / "split" / "shapenet" / g.synset / g.model_id / "models" / "model_normalized.obj")
+            .string();
     PoolEntry e;
     e.model_id = g.model_id;
     e.cad_class = g.cad_class;
@@ -334,8 +334,8 @@ TEST_F(ReconstructorRoom, CliReconstructsAScanNetFolderWithoutLabelsAndEvalReads
   ASSERT_EQ(rc, 0) << log;
   EXPECT_NE(log.find("Completion quality"), std::string::npos) << log;
   // A bad INPUT is an error naming it.
-  std::tie(rc, log) = testing::RunCli("reconstruct " + (dir_ / "nothing_here").string() +
-                                      " --out " + out.string());
+  std::tie(rc, log) =
+      testing::RunCli("reconstruct " + (dir_ / "nothing_here").string() + " --out " + out.string());
   EXPECT_NE(rc, 0);
   EXPECT_NE(log.find("nothing_here"), std::string::npos) << log;
 }
