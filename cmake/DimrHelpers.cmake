@@ -6,6 +6,9 @@
 function(dimr_add_layer layer)
   cmake_parse_arguments(ARG "" "" "PUBLIC;PRIVATE" ${ARGN})
   file(GLOB_RECURSE srcs CONFIGURE_DEPENDS ${PROJECT_SOURCE_DIR}/src/${layer}/*.cpp)
+  # src/<layer>/programs/ holds the main() of executables of that layer (e.g. the ROS node),
+  # not library code.
+  list(FILTER srcs EXCLUDE REGEX "/src/${layer}/programs/")
   if(NOT srcs)
     return()
   endif()

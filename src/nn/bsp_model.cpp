@@ -677,8 +677,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
 
   for (int epoch = start_epoch; epoch < total_epochs; ++epoch) {
     if (opt.phase0_minutes > 0 && epoch < phase0_end &&
-        run_time.ElapsedSeconds() / 60.0 >=
-            opt.phase0_minutes) {
+        run_time.ElapsedSeconds() / 60.0 >= opt.phase0_minutes) {
       std::fprintf(stderr, "phase 0 time budget reached after %d epochs\n", epoch);
       total_epochs -= phase0_end - epoch;
       phase0_end = epoch;
@@ -788,8 +787,7 @@ std::vector<BspEpochLog> BspModel::Train(const BspDataset& train, const BspDatas
     entry.seconds = epoch_time.ElapsedSeconds();
     net->eval();
     const bool last = epoch + 1 == total_epochs;
-    const double minutes =
-        run_time.ElapsedSeconds() / 60.0;
+    const double minutes = run_time.ElapsedSeconds() / 60.0;
     const bool out_of_time = opt.max_minutes > 0 && minutes > opt.max_minutes;
     if (!val.samples.empty() &&
         ((epoch + 1) % std::max(1, opt.checkpoint_every) == 0 || last || out_of_time)) {

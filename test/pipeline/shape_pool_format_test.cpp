@@ -33,7 +33,7 @@ void Le(std::string* out, T v) {  // little-endian, independent of the code unde
 TEST(ShapePoolFormat, ShippedPoolReadsAndRewritesIdentically) {
   const std::string shipped = std::string(DIMR_SOURCE_DIR) + "/models/bsp/pool.bin";
   const ShapePool pool = ShapePool::Load(shipped);
-  EXPECT_EQ(pool.size(), 2000u);          // models/bsp/model.yaml pool.entries
+  EXPECT_EQ(pool.size(), 2000u);  // models/bsp/model.yaml pool.entries
   EXPECT_EQ(pool.latent_dim(), 128);
   EXPECT_EQ(pool.ContentHash(), "3c0f82a31dca527c");  // pool.content_hash of the card
   const std::string copy = (fs::temp_directory_path() / "dimr_pool_format_test.bin").string();

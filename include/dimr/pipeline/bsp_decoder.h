@@ -9,8 +9,9 @@
 // (pipeline::NormalizeForBsp, bsp_data.h): each axis is scaled on its own so that the bounding
 // box becomes [-s, s]^3 with s = 1 - 1/R (R = the encoder grid, 32: s = 0.96875); a CAD model's
 // unit box [-0.5, 0.5]^3 maps by p -> 2 s p. Decoded meshes lie inside [-1, 1]^3 (polytopes
-// are clipped to it) and fill [-s, s] on every axis up to the decoder's error. The object's real proportions are not in the code: placing a
-// mesh in a scene scales it by the object's box (stage 2) again.
+// are clipped to it) and fill [-s, s] on every axis up to the decoder's error. The object's real
+// proportions are not in the code: placing a mesh in a scene scales it by the object's box (stage
+// 2) again.
 //
 // Decoding = planes (decoder network) -> the card's dilations (recommended_dilation,
 // recommended_distance_dilation) -> occupancy / exact convex polytopes (pipeline::
