@@ -3,11 +3,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <numeric>
 
+#include "dimr/core/binary_io.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::nn {
@@ -18,63 +17,6 @@ constexpr char kMagic[8] = {'D', 'I', 'M', 'R', 'S', 'T', '2', 'S'};
 constexpr std::uint32_t kVersion = 1;
 
 bool Finite(const Eigen::Vector3f& v) { return v.allFinite(); }
-
-class Writer {
- public:
-  explicit Writer(const std::string& path) : path_(path), tmp_(path + ".tmp") {
-    out_.open(tmp_, std::ios::binary | std::ios::trunc);
-    if (!out_) throw Error("cannot write '" + tmp_ + "'");
-  }
-  template <typename T>
-  void Put(const T& v) {
-    out_.write(reinterpret_cast<const char*>(&v), sizeof(T));
-  }
-  void Raw(const void* p, std::size_t n) { out_.write(static_cast<const char*>(p), n); }
-  void Close() {
-    out_.close();
-    if (!out_) throw Error("writing '" + tmp_ + "' failed");
-    std::filesystem::rename(tmp_, path_);
-  }
-
- private:
-  std::string path_, tmp_;
-  std::ofstream out_;
-};
-
-class Reader {
- public:
-  explicit Reader(const std::string& path) : path_(path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw ParseError(path, "cannot open the stage-2 cache");
-    data_.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-  }
-  std::size_t Remaining() const { return data_.size() - pos_; }
-  void Need(std::uint64_t count, std::uint64_t bytes_each, const std::string& what) const {
-    if (bytes_each > 0 && count > Remaining() / bytes_each) {
-      throw ParseError(path_, what + ": needs more bytes than the file has left (" +
-                                  std::to_string(Remaining()) + ")");
-    }
-  }
-  template <typename T>
-  T Get(const std::string& what) {
-    Need(1, sizeof(T), what);
-    T v;
-    std::memcpy(&v, data_.data() + pos_, sizeof(T));
-    pos_ += sizeof(T);
-    return v;
-  }
-  void GetArray(void* dst, std::size_t bytes, const std::string& what) {
-    Need(1, bytes, what);
-    if (bytes) std::memcpy(dst, data_.data() + pos_, bytes);
-    pos_ += bytes;
-  }
-  const std::string& path() const { return path_; }
-
- private:
-  std::string path_;
-  std::vector<char> data_;
-  std::size_t pos_ = 0;
-};
 
 }  // namespace
 
@@ -134,85 +76,79 @@ void WriteStage2Samples(const std::string& path, const std::vector<Stage2Sample>
                             e.what());
     }
   }
-  Writer w(path);
-  w.Raw(kMagic, sizeof(kMagic));
+  BinaryWriter w;
+  w.PutBytes(kMagic, sizeof(kMagic));
   w.Put(kVersion);
   w.Put(static_cast<std::uint64_t>(samples.size()));
   for (const Stage2Sample& s : samples) {
     w.Put(static_cast<std::uint32_t>(s.scene.size()));
-    w.Raw(s.scene.data(), s.scene.size());
+    w.PutBytes(s.scene.data(), s.scene.size());
     w.Put(static_cast<std::int32_t>(s.proposal_class));
     w.Put(static_cast<std::int32_t>(s.feature_dim));
     w.Put(static_cast<std::uint64_t>(s.local.size()));
-    for (const auto& p : s.local) w.Raw(p.data(), 3 * sizeof(float));
-    w.Raw(s.features.data(), s.features.size() * sizeof(float));
-    w.Raw(s.extent.data(), 3 * sizeof(float));
+    for (const auto& p : s.local) w.PutBytes(p.data(), 3 * sizeof(float));
+    w.PutBytes(s.features.data(), s.features.size() * sizeof(float));
+    w.PutBytes(s.extent.data(), 3 * sizeof(float));
     w.Put(s.center_height);
     w.Put(s.prior_score);
     w.Put(s.iou);
     w.Put(static_cast<std::int32_t>(s.gt_class));
-    w.Raw(s.center_target.data(), 3 * sizeof(float));
-    w.Raw(s.size_target.data(), 3 * sizeof(float));
+    w.PutBytes(s.center_target.data(), 3 * sizeof(float));
+    w.PutBytes(s.size_target.data(), 3 * sizeof(float));
     w.Put(s.heading_target);
     w.Put(static_cast<std::uint32_t>(s.code.size()));
-    w.Raw(s.code.data(), s.code.size() * sizeof(float));
+    w.PutBytes(s.code.data(), s.code.size() * sizeof(float));
   }
-  w.Close();
+  // Written next to the target and renamed, so a crash never leaves a half-written cache.
+  const std::string tmp = path + ".tmp";
+  w.WriteFile(tmp);
+  std::filesystem::rename(tmp, path);
 }
 
 std::vector<Stage2Sample> ReadStage2Samples(const std::string& path) {
-  Reader r(path);
-  char magic[8];
-  r.GetArray(magic, 8, "magic");
-  if (std::memcmp(magic, kMagic, 8) != 0) {
-    throw ParseError(path, "not a dimr stage-2 sample cache (bad magic)");
-  }
+  const std::string bytes = ReadFileBytes(path);
+  BinaryReader r(path, bytes);
+  r.ExpectMagic(std::string_view(kMagic, sizeof(kMagic)), "a dimr stage-2 sample cache");
   const auto version = r.Get<std::uint32_t>("version");
   if (version != kVersion) {
     throw ParseError(path, "unsupported stage-2 cache version " + std::to_string(version));
   }
-  const auto count = r.Get<std::uint64_t>("sample count");
   // Smallest sample: 4 + 4 + 4 + 8 + 12 + 4 + 4 + 4 + 4 + 24 + 4 + 4 = 80 bytes.
-  r.Need(count, 80, "sample count " + std::to_string(count));
+  const std::size_t count = r.Count(r.Get<std::uint64_t>("sample count"), 80, "samples");
   std::vector<Stage2Sample> out(count);
-  for (std::uint64_t i = 0; i < count; ++i) {
-    const std::string where = "sample " + std::to_string(i);
+  for (std::size_t i = 0; i < count; ++i) {
+    const std::string where = "sample " + std::to_string(i) + ": ";
+    const auto at = [&where](const char* field) { return where + field; };
     Stage2Sample& s = out[i];
-    const auto name_len = r.Get<std::uint32_t>(where + ": scene name length");
-    s.scene.resize(name_len);
-    r.GetArray(s.scene.data(), name_len, where + ": scene name");
-    s.proposal_class = r.Get<std::int32_t>(where + ": proposal class");
-    s.feature_dim = r.Get<std::int32_t>(where + ": feature dim");
+    s.scene = r.GetString(r.Get<std::uint32_t>(at("scene name length").c_str()),
+                          at("scene name").c_str());
+    s.proposal_class = r.Get<std::int32_t>(at("proposal class").c_str());
+    s.feature_dim = r.Get<std::int32_t>(at("feature dim").c_str());
     if (s.feature_dim < 0 || s.feature_dim > 4096) {
-      throw ParseError(path, where + ": feature dim " + std::to_string(s.feature_dim));
+      throw ParseError(path, at("feature dim ") + std::to_string(s.feature_dim));
     }
-    const auto n = r.Get<std::uint64_t>(where + ": point count");
-    r.Need(n, 12 + 4 * static_cast<std::uint64_t>(s.feature_dim), where + ": points");
+    const std::size_t n =
+        r.Count(r.Get<std::uint64_t>(at("point count").c_str()),
+                12 + 4 * static_cast<std::size_t>(s.feature_dim), at("points").c_str());
     s.local.resize(n);
-    for (auto& p : s.local) r.GetArray(p.data(), 3 * sizeof(float), where + ": points");
-    s.features.resize(n * static_cast<std::size_t>(s.feature_dim));
-    r.GetArray(s.features.data(), s.features.size() * sizeof(float), where + ": features");
-    r.GetArray(s.extent.data(), 3 * sizeof(float), where + ": extent");
-    s.center_height = r.Get<float>(where + ": centre height");
-    s.prior_score = r.Get<float>(where + ": prior score");
-    s.iou = r.Get<float>(where + ": iou");
-    s.gt_class = r.Get<std::int32_t>(where + ": gt class");
-    r.GetArray(s.center_target.data(), 3 * sizeof(float), where + ": centre target");
-    r.GetArray(s.size_target.data(), 3 * sizeof(float), where + ": size target");
-    s.heading_target = r.Get<float>(where + ": heading target");
-    const auto code_n = r.Get<std::uint32_t>(where + ": code size");
-    r.Need(code_n, 4, where + ": code");
-    s.code.resize(code_n);
-    r.GetArray(s.code.data(), code_n * sizeof(float), where + ": code");
+    for (auto& p : s.local) r.GetInto(p.data(), 3, at("points").c_str());
+    r.GetArray(n * static_cast<std::size_t>(s.feature_dim), &s.features, at("features").c_str());
+    r.GetInto(s.extent.data(), 3, at("extent").c_str());
+    s.center_height = r.Get<float>(at("centre height").c_str());
+    s.prior_score = r.Get<float>(at("prior score").c_str());
+    s.iou = r.Get<float>(at("iou").c_str());
+    s.gt_class = r.Get<std::int32_t>(at("gt class").c_str());
+    r.GetInto(s.center_target.data(), 3, at("centre target").c_str());
+    r.GetInto(s.size_target.data(), 3, at("size target").c_str());
+    s.heading_target = r.Get<float>(at("heading target").c_str());
+    r.GetArray(r.Get<std::uint32_t>(at("code size").c_str()), &s.code, at("code").c_str());
     try {
       s.Validate();
     } catch (const InvalidArgument& e) {
-      throw ParseError(path, where + ": " + e.what());
+      throw ParseError(path, where + e.what());
     }
   }
-  if (r.Remaining() != 0) {
-    throw ParseError(path, std::to_string(r.Remaining()) + " trailing bytes after the last sample");
-  }
+  r.ExpectEnd("the last sample");
   return out;
 }
 
