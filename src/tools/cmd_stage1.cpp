@@ -28,6 +28,7 @@
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "tools/command_registry.h"
 #include "tools/config_options.h"
+#include "tools/stage1_inference_args.h"
 #include "tools/render.h"
 #include "tools/sha256.h"
 #include "tools/stage1_scenes.h"
@@ -211,40 +212,6 @@ void RenderComparison(const nn::Stage1Sample& s, const std::vector<pipeline::Sco
   blit(a, 0);
   blit(b, a.width + gap);
   WritePng(path, w, h, img);
-}
-
-// ---------------------------------------------------------------- inference settings
-// The flags `dimr stage1 eval`, `dimr stage1 calibrate` and `dimr bench stage1` share: the
-// weights, a preset, and one option per Stage1InferenceConfig field overriding the card.
-struct InferenceArgs {
-  std::string model = "models/stage1/stage1.pt";
-  std::string preset = "accurate";
-  std::shared_ptr<ConfigOptions<pipeline::Stage1InferenceConfig>> options;
-};
-
-void AddInferenceFlags(CLI::App& app, InferenceArgs* a) {
-  app.add_option("--model", a->model, "stage-1 weights (dimr train stage1)");
-  app.add_option("--preset", a->preset,
-                 "fast (one network pass) | accurate (the model card's recommended_inference)");
-  a->options = std::make_shared<ConfigOptions<pipeline::Stage1InferenceConfig>>(
-      app, pipeline::Stage1InferenceConfig::Fields(),
-      "; default: the model card's recommended_inference, else the reference's");
-}
-
-// The model card's recommended_inference under the preset, overridden by the flags given;
-// `source` names where the settings came from.
-pipeline::Stage1InferenceConfig ResolveInference(const InferenceArgs& a, std::string* source) {
-  const pipeline::Stage1Preset preset = pipeline::Stage1PresetNames().Parse(a.preset);
-  pipeline::Stage1InferenceConfig c = pipeline::Stage1InferenceConfig().WithPreset(preset);
-  *source = "defaults (reference passes, no test-time augmentation)";
-  if (const auto card = pipeline::ModelCard::LoadIfExists(a.model);
-      card && card->has("recommended_inference")) {
-    c = pipeline::Stage1InferenceConfig::FromModelCard(*card, preset);
-    *source = card->path();
-  }
-  a.options->Apply(&c);
-  c.Validate();
-  return c;
 }
 
 std::string PassesText(const pipeline::Stage1InferenceConfig& c) {

@@ -1,0 +1,382 @@
+// `dimr real eval`: stage 1 on a real ScanNet scene with only labels.ply (NYU40 per vertex) and
+// optionally its Scan2CAD alignment (eval/real_eval.h); `dimr real bsp`: the BSP-CVAE's IoU on
+// the CAD models of a real ShapeNet-format tree (docs/real.md).
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "dimr/core/error.h"
+#include "dimr/core/labels.h"
+#include "dimr/core/timing.h"
+#include "dimr/data/cad_library.h"
+#include "dimr/data/scan2cad_io.h"
+#include "dimr/data/scan2cad_relabel.h"
+#include "dimr/data/shapenet_io.h"
+#include "dimr/eval/mesh_metrics.h"
+#include "dimr/eval/real_eval.h"
+#include "dimr/pipeline/bsp_data.h"
+#include "dimr/pipeline/bsp_decoder.h"
+#include "dimr/pipeline/bsp_mesher.h"
+#include "dimr/pipeline/point_cloud_input.h"
+#include "dimr/pipeline/stage1_segmenter.h"
+#include "tools/bsp_options.h"
+#include "tools/command_registry.h"
+#include "tools/render.h"
+#include "tools/stage1_inference_args.h"
+#include "tools/stats_inputs.h"
+
+namespace dimr::tools {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+std::string Num(double v, int digits = 3) {
+  if (std::isnan(v)) return "-";
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.*f", digits, v);
+  return buf;
+}
+
+json ReportJson(const eval::SemanticReport& r) {
+  json j;
+  j["miou_present"] = r.miou_present;
+  j["classes_present"] = r.classes_present;
+  j["accuracy"] = r.accuracy;
+  for (const auto& c : r.classes) {
+    if (c.gt_points == 0 && std::isnan(c.iou)) continue;
+    json e = {{"gt_points", c.gt_points}, {"iou", std::isnan(c.iou) ? json() : json(c.iou)}};
+    for (const auto& k : c.confusion) e["confusion"].push_back({k.pred, k.fraction});
+    j["classes"][c.name] = e;
+  }
+  return j;
+}
+
+void PrintReport(const std::string& title, const eval::SemanticReport& r,
+                 const std::vector<std::string>& names) {
+  std::printf(
+      "\n#### %s\n\n| class | GT points | IoU | GT points predicted as |\n|---|---|---|---|\n",
+      title.c_str());
+  for (const auto& c : r.classes) {
+    if (c.gt_points == 0) continue;
+    std::string conf;
+    for (const auto& k : c.confusion) {
+      conf += (conf.empty() ? "" : ", ") +
+              std::string(k.pred >= 0 ? names[k.pred] : std::string("(other)")) + " " +
+              Num(100.0 * k.fraction, 0) + " %";
+    }
+    std::printf("| %s | %lld | %s | %s |\n", c.name.c_str(), c.gt_points, Num(c.iou).c_str(),
+                conf.c_str());
+  }
+  std::string extra;
+  for (const auto& c : r.classes)
+    if (c.gt_points == 0 && !std::isnan(c.iou)) extra += (extra.empty() ? "" : ", ") + c.name;
+  std::printf("\n**mIoU over the %d classes present %s**, accuracy %s%s\n", r.classes_present,
+              Num(r.miou_present).c_str(), Num(r.accuracy).c_str(),
+              extra.empty() ? "" : ("; predicted but absent: " + extra).c_str());
+}
+
+std::vector<std::string> Names(const char* const* names, int n) {
+  return std::vector<std::string>(names, names + n);
+}
+
+geometry::Vec3 ClassColour(int c) {
+  return c < 0 ? geometry::Vec3(0.82, 0.82, 0.82) : PaletteColour(c);
+}
+
+// ---------------------------------------------------------------- real eval
+struct RealEvalArgs {
+  std::string scene, scan2cad, json, render_dir;
+  InferenceArgs inference;
+  bool grey = false;
+  double box_margin = 0.0;
+  double iou = 0.5;
+};
+
+void RunRealEval(const RealEvalArgs& a) {
+  const StatsCloud c = ReadStatsCloud(a.scene);
+  if (c.nyu40.empty())
+    throw ParseError(a.scene,
+                     "no labels (want <scene>_vh_clean_2.labels.ply or a 'label' "
+                     "property with NYU40 ids)");
+  if (c.colors.empty() && !a.grey)
+    throw ParseError(a.scene, "the cloud has no colours (use --grey for a geometry-only run)");
+  std::string source;
+  const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
+  const pipeline::Stage1Segmenter seg = pipeline::Stage1Segmenter::Load(a.inference.model, inf);
+
+  pipeline::PointCloudInput in;
+  in.name = c.name;
+  in.points.reserve(c.points.size());
+  for (const auto& p : c.points) in.points.push_back(p.cast<float>());
+  if (a.grey) {
+    in.colors.assign(c.points.size(), Eigen::Vector3f::Constant(0.5f));
+  } else {
+    for (const auto& col : c.colors) in.colors.push_back(col.cast<float>() / 255.0f);
+  }
+  const pipeline::Stage1Result r = seg.Segment(in);
+
+  std::printf("%s: %zu points, model %s (%s), inference from %s: %s%s\n", c.name.c_str(),
+              c.points.size(), a.inference.model.c_str(), seg.model_config().c_str(),
+              source.c_str(), inf.ToString().c_str(), a.grey ? ", colours set to grey" : "");
+  std::printf("stage 1: %d network passes, %.1f s\n", inf.network_passes(),
+              r.timings.ms("total") / 1000.0);
+
+  // Semantic: RFS 25 from NYU40; DODA 11 straight from NYU40; CAD 8 from RFS.
+  const int n = static_cast<int>(c.points.size());
+  std::vector<int> gt25(n), gt11(n), pr11(n), gt8(n);
+  for (int i = 0; i < n; ++i) {
+    gt25[i] = c.semantic[i] >= 0 && c.semantic[i] < labels::kNumRfsClasses ? c.semantic[i] : -1;
+    gt11[i] = eval::Nyu40ToDoda(c.nyu40[i]);
+    pr11[i] = eval::RfsToDoda(r.semantic[i]);
+    gt8[i] = gt25[i] >= 0 ? labels::RfsToCad(gt25[i]) : -1;
+  }
+  const auto names25 = Names(labels::RfsClassNames().data(), labels::kNumRfsClasses);
+  const auto names11 = Names(eval::DodaClassNames().data(), eval::kNumDodaClasses);
+  const auto names8 = Names(labels::CadClassNames().data(), labels::kNumCadClasses);
+  const eval::SemanticReport s25 = eval::EvaluateSemantic(gt25, r.semantic, names25);
+  const eval::SemanticReport s11 = eval::EvaluateSemantic(gt11, pr11, names11);
+  const eval::SemanticReport s8 = eval::EvaluateSemantic(gt8, r.cad_label, names8);
+  PrintReport("semantic, RFS 25 classes (NYU40 -> RFS)", s25, names25);
+  PrintReport("semantic, DODA's 11 classes", s11, names11);
+  PrintReport("semantic, the 8 CAD classes (RFS -> CAD)", s8, names8);
+
+  json j;
+  j["scene"] = c.name;
+  j["points"] = n;
+  j["model"] = a.inference.model;
+  j["inference"] = inf.ToString();
+  j["grey"] = a.grey;
+  j["seconds"] = r.timings.ms("total") / 1000.0;
+  j["semantic_rfs25"] = ReportJson(s25);
+  j["semantic_doda11"] = ReportJson(s11);
+  j["semantic_cad8"] = ReportJson(s8);
+  j["predicted_instances"] = r.instances.size();
+
+  // Scan2CAD objects.
+  std::vector<std::vector<int>> gt_sets;
+  std::vector<int> gt_class;
+  std::vector<geometry::OrientedBox> gt_boxes;
+  std::vector<eval::ObjectMatch> matches;
+  std::vector<eval::PredictedInstance> preds;
+  for (const auto& inst : r.instances) preds.push_back({inst.cad_class, inst.score, inst.points});
+  if (!a.scan2cad.empty()) {
+    const auto scenes = data::ReadScan2CadAnnotations(a.scan2cad);
+    const data::Scan2CadScene* ann = nullptr;
+    for (const auto& s : scenes)
+      if (s.id_scan == c.name) ann = &s;
+    if (!ann && scenes.size() == 1) ann = &scenes[0];
+    if (!ann) throw ParseError(a.scan2cad, "no entry with id_scan '" + c.name + "'");
+    const Eigen::Matrix4d scan_from_world =
+        data::Scan2CadToAlignedScene(Eigen::Matrix4d::Identity(), *ann);
+    std::vector<std::string> ids;
+    for (const auto& m : ann->aligned_models) {
+      const int cls = labels::CadClassFromSynset(m.catid_cad);
+      if (cls < 0) continue;
+      const Eigen::Matrix4d to_scan = eval::Scan2CadModelToScan(*ann, m);
+      gt_sets.push_back(eval::PointsInScan2CadBox(c.points, m, to_scan, a.box_margin));
+      gt_class.push_back(cls);
+      gt_boxes.push_back(data::Scan2CadModelBox(m, scan_from_world));
+      ids.push_back(m.id_cad);
+    }
+    matches = eval::MatchObjects(gt_sets, gt_class, preds, a.iou);
+    int found = 0;
+    std::printf(
+        "\n#### Scan2CAD objects (GT = scan points inside the aligned CAD box%s)\n\n| # | class "
+        "| CAD | GT points | best IoU, same class | best IoU, any class (its class) | found "
+        "|\n|---|---|---|---|---|---|---|\n",
+        a.box_margin != 0 ? (", margin " + Num(a.box_margin, 3) + " m").c_str() : "");
+    for (std::size_t k = 0; k < matches.size(); ++k) {
+      const auto& m = matches[k];
+      found += m.found;
+      std::printf("| %zu | %s | %.8s | %d | %s | %s (%s) | %s |\n", k, names8[m.cad_class].c_str(),
+                  ids[k].c_str(), m.gt_points, Num(m.best_iou).c_str(), Num(m.best_iou_any).c_str(),
+                  m.best_any_class >= 0 ? names8[m.best_any_class].c_str() : "-",
+                  m.found ? "yes" : "no");
+      j["objects"].push_back({{"class", names8[m.cad_class]},
+                              {"id_cad", ids[k]},
+                              {"gt_points", m.gt_points},
+                              {"best_iou", m.best_iou},
+                              {"best_iou_any", m.best_iou_any},
+                              {"found", m.found}});
+    }
+    std::printf(
+        "\n**found %d of %zu** (a predicted instance of the right class with point IoU >= "
+        "%s); %zu predicted instances\n",
+        found, matches.size(), Num(a.iou, 2).c_str(), r.instances.size());
+    j["found"] = found;
+    j["objects_total"] = matches.size();
+  }
+
+  if (!a.json.empty()) {
+    std::ofstream f(a.json);
+    if (!(f << j.dump(1) << "\n")) throw Error("cannot write " + a.json);
+  }
+  if (!a.render_dir.empty()) {
+    fs::create_directories(a.render_dir);
+    ScenePanel gt, pr;
+    gt.points = c.points;
+    pr.points = c.points;
+    for (int i = 0; i < n; ++i) {
+      gt.point_colors.push_back(ClassColour(gt25[i]));
+      pr.point_colors.push_back(ClassColour(r.semantic[i]));
+    }
+    gt.title = "ground truth (NYU40 labels)";
+    pr.title = "prediction";
+    const std::string sem = (fs::path(a.render_dir) / (c.name + "_semantic.png")).string();
+    RenderScenePanels({gt, pr}, 720, 560, sem);
+    std::printf("\npictures: %s", sem.c_str());
+    if (!gt_sets.empty()) {
+      ScenePanel gi, pi;
+      gi.points = c.points;
+      pi.points = c.points;
+      gi.point_colors.assign(n, geometry::Vec3(0.85, 0.85, 0.85));
+      pi.point_colors.assign(n, geometry::Vec3(0.85, 0.85, 0.85));
+      for (std::size_t k = 0; k < gt_sets.size(); ++k) {
+        for (int p : gt_sets[k]) gi.point_colors[p] = PaletteColour(static_cast<int>(k));
+        gi.boxes.push_back({gt_boxes[k], geometry::Vec3(0.1, 0.1, 0.1)});
+        pi.boxes.push_back({gt_boxes[k], geometry::Vec3(0.1, 0.1, 0.1)});
+      }
+      // Predicted instances: the colour of the GT object they match best, else by index.
+      for (std::size_t p = 0; p < preds.size(); ++p) {
+        int colour = static_cast<int>(gt_sets.size() + p);
+        for (std::size_t k = 0; k < matches.size(); ++k)
+          if (matches[k].best_index == static_cast<int>(p)) colour = static_cast<int>(k);
+        for (int q : preds[p].points) pi.point_colors[q] = PaletteColour(colour);
+      }
+      gi.title = "Scan2CAD objects (points in the aligned boxes)";
+      pi.title = "predicted instances";
+      const std::string ins = (fs::path(a.render_dir) / (c.name + "_instances.png")).string();
+      RenderScenePanels({gi, pi}, 720, 560, ins);
+      std::printf(", %s", ins.c_str());
+    }
+    std::printf("\n");
+  }
+}
+
+void SetupRealEval(CLI::App& app) {
+  auto a = std::make_shared<RealEvalArgs>();
+  app.add_option("--scene", a->scene,
+                 "a ScanNet scene folder (<name>_vh_clean_2.ply + .labels.ply with NYU40 ids) or "
+                 "a PLY with a 'label' property")
+      ->required();
+  app.add_option(
+      "--scan2cad", a->scan2cad,
+      "Scan2CAD annotation (a JSON list; the entry with the scene's id_scan, or the only "
+      "one)");
+  AddInferenceFlags(app, &a->inference);
+  app.add_flag("--grey", a->grey, "set every colour to grey (0.5): a geometry-only measurement");
+  app.add_option("--box-margin", a->box_margin,
+                 "grow (or shrink, < 0) the Scan2CAD boxes by this much per side [m]");
+  app.add_option("--iou", a->iou, "point IoU for an object to count as found")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--json", a->json, "write the numbers as JSON");
+  app.add_option("--render-dir", a->render_dir,
+                 "write GT-vs-prediction pictures (<scene>_semantic.png, <scene>_instances.png)");
+  app.callback([a]() { RunRealEval(*a); });
+}
+
+// ---------------------------------------------------------------- real bsp
+struct RealBspArgs {
+  std::string model = "models/bsp/bsp.pt";
+  std::string shapenet;
+  BspDilation dilation;
+  std::uint64_t seed = 3;
+  std::string render;
+};
+
+// IoU on the 32^3 grid and Chamfer distance of the decoded BSP meshes of every CAD model of a
+// ShapeNet-format tree (a real ShapeNet tree: canonical frame by data::ReadShapeNetModel), as
+// `dimr bsp eval-cad` does for procedural models.
+void RunRealBsp(const RealBspArgs& a) {
+  const pipeline::BspDecoder decoder =
+      pipeline::BspDecoder::Load(a.model, {a.dilation.plane, a.dilation.distance});
+  const std::vector<data::CadModel> models = data::ReadShapeNetTree(a.shapenet);
+  pipeline::BspSampleOptions opt;
+  opt.resolution = decoder.resolution();
+  const int L = decoder.latent_dim();
+  const Eigen::MatrixX3f centers = pipeline::BspGridCenters(opt.resolution);
+  std::printf("%zu models of %s; model %s, dilation %.3g, distance dilation %.3g\n\n",
+              models.size(), a.shapenet.c_str(), a.model.c_str(), decoder.mesh_options().dilation,
+              decoder.mesh_options().distance_dilation);
+  std::printf("| class | model | IoU@32^3 | Chamfer (x 1e-2) |\n|---|---|---|---|\n");
+  std::vector<double> iou_of_class(labels::kNumCadClasses, 0.0);
+  std::vector<int> n_of_class(labels::kNumCadClasses, 0);
+  double all = 0;
+  int all_n = 0;
+  std::vector<RenderTile> tiles;
+  for (std::size_t i = 0; i < models.size(); ++i) {
+    const data::CadModel& m = models[i];
+    if (m.cad_class < 0 || m.cad_class >= decoder.num_classes()) continue;
+    const std::uint64_t seed = a.seed * 1000003ull + i;
+    const nn::BspSample sample =
+        pipeline::MakeBspSample(m.mesh, m.cad_class, m.model_id, opt, seed ^ 0x9e3779b97f4a7c15ull);
+    const Eigen::VectorXf mu = decoder.Encode(sample.grid, m.cad_class).head(L);
+    const Eigen::MatrixXf planes = decoder.Planes(mu, m.cad_class);
+    const double iou =
+        pipeline::OccupancyIoU(decoder.OccupancyFromPlanes(planes, centers), sample.iou_grid);
+    const geometry::TriangleMesh decoded = decoder.MeshFromPlanes(planes).mesh;
+    double cd = std::nan("");
+    const geometry::TriangleMesh original = pipeline::NormalizeForBsp(m.mesh, opt.resolution);
+    if (!decoded.faces.empty())
+      cd = eval::ChamferDistance(eval::ChamferSamples(original, seed),
+                                 eval::ChamferSamples(decoded, seed + 1));
+    std::printf("| %s | %.8s | %.4f | %s |\n", labels::CadClassNames()[m.cad_class],
+                m.model_id.c_str(), iou, Num(100.0 * cd, 2).c_str());
+    iou_of_class[m.cad_class] += iou;
+    ++n_of_class[m.cad_class];
+    all += iou;
+    ++all_n;
+    if (!a.render.empty()) {
+      RenderTile t;
+      t.mesh = original;
+      t.label = std::string(labels::CadClassNames()[m.cad_class]) + " CAD";
+      tiles.push_back(t);
+      t.mesh = decoded;
+      t.color = geometry::Vec3(0.85, 0.55, 0.35);
+      t.label = "BSP IoU " + Num(iou, 2);
+      tiles.push_back(t);
+    }
+  }
+  if (all_n == 0) throw InvalidArgument(a.shapenet + ": no model of a CAD class the model knows");
+  std::printf("\n| class | models | mean IoU@32^3 |\n|---|---|---|\n");
+  for (int c = 0; c < labels::kNumCadClasses; ++c)
+    if (n_of_class[c])
+      std::printf("| %s | %d | %.4f |\n", labels::CadClassNames()[c], n_of_class[c],
+                  iou_of_class[c] / n_of_class[c]);
+  std::printf("| **all** | %d | **%.4f** |\n", all_n, all / all_n);
+  if (!a.render.empty()) {
+    RenderSheet(tiles, 4, 256, a.render);
+    std::printf("picture: %s\n", a.render.c_str());
+  }
+}
+
+void SetupRealBsp(CLI::App& app) {
+  auto a = std::make_shared<RealBspArgs>();
+  app.add_option("--model", a->model, "BSP-CVAE weights");
+  app.add_option("--shapenet", a->shapenet,
+                 "a ShapeNet-format tree (<synset>/<id>/models/model_normalized.obj)")
+      ->required();
+  app.add_option("--seed", a->seed, "sampling seed of the voxel grids");
+  app.add_option("--render", a->render, "write a CAD | decoded contact sheet (PNG)");
+  AddBspDilationOption(app, &a->dilation);
+  app.callback([a]() { RunRealBsp(*a); });
+}
+
+const Registrar kRealEval("real", "eval",
+                          "Stage 1 on a real ScanNet scene with labels.ply (NYU40) and an optional "
+                          "Scan2CAD alignment: mIoU (RFS 25, DODA 11, CAD 8), objects found",
+                          &SetupRealEval);
+const Registrar kRealBsp("real", "bsp",
+                         "BSP-CVAE IoU@32^3 and Chamfer distance on the CAD models of a real "
+                         "ShapeNet tree",
+                         &SetupRealBsp);
+
+}  // namespace
+}  // namespace dimr::tools

@@ -1,0 +1,130 @@
+#include "dimr/eval/real_eval.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "dimr/core/error.h"
+#include "dimr/core/labels.h"
+
+namespace dimr::eval {
+namespace {
+
+using geometry::Vec3;
+
+TEST(RealEval, DodaMapping) {
+  EXPECT_EQ(Nyu40ToDoda(1), 0);    // wall
+  EXPECT_EQ(Nyu40ToDoda(2), 1);    // floor
+  EXPECT_EQ(Nyu40ToDoda(10), 9);   // bookshelf
+  EXPECT_EQ(Nyu40ToDoda(14), 10);  // desk
+  EXPECT_EQ(Nyu40ToDoda(11), -1);  // picture
+  EXPECT_EQ(Nyu40ToDoda(12), -1);  // counter
+  EXPECT_EQ(Nyu40ToDoda(0), -1);
+  EXPECT_EQ(Nyu40ToDoda(40), -1);
+  EXPECT_EQ(RfsToDoda(labels::kWall), 0);
+  EXPECT_EQ(RfsToDoda(labels::kDesk), 10);
+  EXPECT_EQ(RfsToDoda(labels::kKitchenCabinet), 2);  // NYU40 cabinet
+  EXPECT_EQ(RfsToDoda(labels::kOtherTable), 6);      // NYU40 table
+  EXPECT_EQ(RfsToDoda(labels::kOtherShelf), -1);     // NYU40 shelves, not bookshelf
+  EXPECT_EQ(RfsToDoda(labels::kCounter), -1);
+  EXPECT_EQ(RfsToDoda(labels::kTrashBin), -1);
+  EXPECT_EQ(RfsToDoda(-1), -1);
+  EXPECT_EQ(RfsToDoda(99), -1);
+  // Every DODA class is reached from its own RFS class.
+  for (int d = 0; d < kNumDodaClasses; ++d)
+    EXPECT_EQ(RfsToDoda(labels::RfsClassFromName(DodaClassNames()[d])), d) << d;
+}
+
+TEST(RealEval, SemanticReportPresentClassesAndConfusions) {
+  // Class 0: 4 GT points, 3 right, 1 -> class 2. Class 1: 2 GT points, both -> "other" (-1).
+  // Class 2: no GT, predicted once (counts as fp, not in the mean over present classes).
+  const std::vector<int> gt = {0, 0, 0, 0, 1, 1, -1};
+  const std::vector<int> pr = {0, 0, 0, 2, -1, 7, 0};
+  const SemanticReport r = EvaluateSemantic(gt, pr, {"a", "b", "c"});
+  EXPECT_EQ(r.classes_present, 2);
+  EXPECT_DOUBLE_EQ(r.classes[0].iou, 0.75);  // tp 3, fn 1, fp 0 (the ignored point is not fp)
+  EXPECT_DOUBLE_EQ(r.classes[1].iou, 0.0);
+  EXPECT_DOUBLE_EQ(r.miou_present, 0.375);
+  EXPECT_DOUBLE_EQ(r.accuracy, 0.5);
+  ASSERT_EQ(r.classes[0].confusion.size(), 2u);
+  EXPECT_EQ(r.classes[0].confusion[0].pred, 0);
+  EXPECT_DOUBLE_EQ(r.classes[0].confusion[0].fraction, 0.75);
+  EXPECT_EQ(r.classes[0].confusion[1].pred, 2);
+  ASSERT_EQ(r.classes[1].confusion.size(), 1u);
+  EXPECT_EQ(r.classes[1].confusion[0].pred, -1);  // 7 is outside the set too
+  EXPECT_DOUBLE_EQ(r.classes[1].confusion[0].fraction, 1.0);
+  EXPECT_EQ(r.classes[2].gt_points, 0);
+  EXPECT_DOUBLE_EQ(r.classes[2].iou, 0.0);  // predicted but absent
+  EXPECT_THROW(EvaluateSemantic({0}, {0, 1}, {"a"}), InvalidArgument);
+}
+
+TEST(RealEval, TrsComposesTranslateRotateScale) {
+  const Eigen::Quaterniond q(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  const Eigen::Matrix4d m = TrsMatrix(Vec3(1, 2, 3), q, Vec3(2, 1, 1));
+  // (1, 0, 0) -> scale (2, 0, 0) -> rotate (0, 2, 0) -> translate (1, 4, 3).
+  const Eigen::Vector4d p = m * Eigen::Vector4d(1, 0, 0, 1);
+  EXPECT_NEAR((p.head<3>() - Vec3(1, 4, 3)).norm(), 0.0, 1e-12);
+}
+
+TEST(RealEval, PointsInsideAnAlignedBox) {
+  // Scan frame = world shifted by (10, 0, 0): trs_scan = Translate(10, 0, 0), so
+  // p_scan = p_world - (10, 0, 0). The CAD box: centre (0, 0.1, 0), half extents (0.5, 0.25,
+  // 0.5) in CAD units, scaled by (2, 2, 2), rotated 90 degrees about z, placed at (11, 1, 0).
+  data::Scan2CadScene scene;
+  scene.id_scan = "s";
+  scene.translation = Vec3(10, 0, 0);
+  data::Scan2CadModel m;
+  m.translation = Vec3(11, 1, 0);
+  m.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  m.scale = Vec3(2, 2, 2);
+  m.bbox = Vec3(0.5, 0.25, 0.5);
+  m.center = Vec3(0, 0.1, 0);
+  const Eigen::Matrix4d to_scan = Scan2CadModelToScan(scene, m);
+  // Box centre in the scan: (11, 1, 0) + Rz(90)(0, 0.2, 0) - (10, 0, 0) = (0.8, 1, 0); its
+  // half extents in the scan: along y 1.0 (CAD x), along x 0.5 (CAD y), along z 1.0.
+  const std::vector<Vec3> pts = {
+      Vec3(0.8, 1, 0),           // centre: in
+      Vec3(0.8 + 0.49, 1, 0),    // inside along scan x (half 0.5)
+      Vec3(0.8 + 0.51, 1, 0),    // outside
+      Vec3(0.8, 1 + 0.99, 0),    // inside along scan y (half 1.0)
+      Vec3(0.8, 1 + 1.01, 0),    // outside
+      Vec3(0.8, 1, -0.99),       // inside along z
+      Vec3(10.8, 1, 0),          // the world-frame centre: outside in the scan frame
+  };
+  EXPECT_EQ(PointsInScan2CadBox(pts, m, to_scan), std::vector<int>({0, 1, 3, 5}));
+  // A 2 cm margin takes in the points 1 cm outside.
+  EXPECT_EQ(PointsInScan2CadBox(pts, m, to_scan, 0.02), std::vector<int>({0, 1, 2, 3, 4, 5}));
+  m.scale = Vec3(0, 1, 1);
+  EXPECT_THROW(Scan2CadModelToScan(scene, m), InvalidArgument);
+}
+
+TEST(RealEval, PointIouAndObjectMatching) {
+  EXPECT_DOUBLE_EQ(PointIoU({1, 2, 3, 4}, {3, 4, 5, 6}), 2.0 / 6.0);
+  EXPECT_DOUBLE_EQ(PointIoU({1, 1, 2}, {2, 2}), 0.5);  // duplicates ignored
+  EXPECT_DOUBLE_EQ(PointIoU({}, {}), 0.0);
+  // GT 0 (chair, points 0..9): a chair prediction with IoU 0.6 and a table one with 0.9.
+  // GT 1 (table, 20..29): only a table prediction with IoU 0.4 -> not found.
+  std::vector<int> g0, g1, p_chair, p_table, p_table2;
+  for (int i = 0; i < 10; ++i) g0.push_back(i), g1.push_back(20 + i);
+  for (int i = 0; i < 6; ++i) p_chair.push_back(i);
+  for (int i = 0; i < 9; ++i) p_table.push_back(i);
+  for (int i = 0; i < 4; ++i) p_table2.push_back(20 + i);
+  const std::vector<PredictedInstance> preds = {
+      {labels::kCadChair, 0.9, p_chair},
+      {labels::kCadTable, 0.8, p_table},
+      {labels::kCadTable, 0.7, p_table2}};
+  const auto m = MatchObjects({g0, g1}, {labels::kCadChair, labels::kCadTable}, preds);
+  ASSERT_EQ(m.size(), 2u);
+  EXPECT_TRUE(m[0].found);
+  EXPECT_EQ(m[0].best_index, 0);
+  EXPECT_DOUBLE_EQ(m[0].best_iou, 0.6);
+  EXPECT_DOUBLE_EQ(m[0].best_iou_any, 0.9);
+  EXPECT_EQ(m[0].best_any_class, labels::kCadTable);
+  EXPECT_FALSE(m[1].found);
+  EXPECT_DOUBLE_EQ(m[1].best_iou, 0.4);
+  EXPECT_EQ(m[1].gt_points, 10);
+  EXPECT_THROW(MatchObjects({g0}, {}, preds), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace dimr::eval
