@@ -81,6 +81,9 @@ void DeclareNodeParams(NodeConfig* c, ParamTable* t) {
                "minimum message-time spacing of processed clouds (accumulated mode)");
   t->AddInt("max_input_points", &c->max_input_points, 1000, 100000000, "",
             "larger input clouds are subsampled with a uniform stride before reconstruction");
+  t->AddDouble("input_voxel_size", &c->input_voxel_size, 0, 1, "m",
+               "each occupied cell of this size becomes the mean of its points before "
+               "reconstruction (stage 1's training density: 0.045); 0 = off");
   t->AddVector3("crop_box/min", &c->crop_min, -kInf, kInf, "m",
                 "lower corner of the crop box in fixed_frame");
   t->AddVector3("crop_box/max", &c->crop_max, -kInf, kInf, "m",

@@ -11,6 +11,7 @@
 #include <fstream>
 
 #include "dimr/geometry/error.h"
+#include "dimr/ros/density_filter.h"
 #include "dimr/ros/scene_conversion.h"
 #include "dimr/ros/scene_files.h"
 
@@ -372,6 +373,16 @@ void ReconstructionNode::Process(const Job& job) {
     input.normals = std::move(decoded.normals);
     input.name = "cloud '" + msg.header.frame_id + "' @ " + StampText(msg.header.stamp);
   }
+  // Bring the cloud to the density stage 1 was trained on (density_filter.h).
+  const VoxelFilterStats vf = VoxelMeanFilter(&input, config_.input_voxel_size);
+  if (config_.input_voxel_size > 0 && !vf.applied)
+    NoteIssue("cloud_warning", "input_voxel_size " + std::to_string(config_.input_voxel_size) +
+                                   " m not applied: the cloud spans more than 2^21 cells");
+  {
+    std::lock_guard<std::mutex> slock(stats_mutex_);
+    last_voxel_in_ = vf.input_points;
+    last_voxel_out_ = vf.output_points;
+  }
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
     if (job.epoch != epoch_) return;  // reset since it was queued
@@ -637,6 +648,8 @@ void ReconstructionNode::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("last_issue", last_issue_);
   stat.add("latency_s", last_latency_);
   stat.add("processing_s", last_processing_);
+  stat.add("voxel_input_points", last_voxel_in_);
+  stat.add("voxel_output_points", last_voxel_out_);
   stat.add("max_callback_ms", max_callback_ms_);
   stat.add("instances", instances_);
   stat.add("rss_mb", RssBytes() / 1048576.0);

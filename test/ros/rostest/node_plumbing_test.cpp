@@ -197,6 +197,12 @@ TEST_F(NodeTest, SceneInFixedFrameWithInputStampAndMarkers) {
   ASSERT_EQ(s.instances.size(), 3u);
   EXPECT_EQ(s.model_version, "box-test");
   EXPECT_GT(s.input_points, 1000u);
+  // input_voxel_size (0.045 m by default) thins the 4 cm box samples before the backend.
+  const sensor_msgs::PointCloud2 sent = Boxes("sensor", stamp);
+  EXPECT_EQ(DiagInt("voxel_input_points"), static_cast<int>(sent.width));
+  EXPECT_EQ(DiagInt("voxel_output_points"), static_cast<int>(s.input_points));
+  EXPECT_LT(s.input_points, sent.width);
+  EXPECT_EQ(static_cast<int>(s.input_points), ctl_.last_points.load());
   for (const InstanceMesh& m : s.instances) {
     bool matched = false;
     for (const Obj& o : kObjects) {
@@ -594,8 +600,12 @@ TEST_F(NodeTest, HostileInputsGiveNamedDiagnosticsAndTheNodeKeepsServing) {
       *z = (i / 100000) * 0.001f;
     }
     const SceneMeshes s = Publish(big);
-    EXPECT_LE(ctl_.last_points.load(), 200000);
-    EXPECT_GE(ctl_.last_points.load(), 190000);
+    // Stride-subsampled to <= max_input_points, then voxel-mean filtered (4.5 cm cells of the
+    // 1 m x 0.1 m x 0.1 m block: at most 23 x 3 x 3).
+    EXPECT_LE(DiagInt("voxel_input_points"), 200000);
+    EXPECT_GE(DiagInt("voxel_input_points"), 190000);
+    EXPECT_LE(ctl_.last_points.load(), 23 * 3 * 3);
+    EXPECT_GT(ctl_.last_points.load(), 20);
     EXPECT_EQ(s.input_points, static_cast<std::uint32_t>(ctl_.last_points.load()));
     EXPECT_EQ(Publish(base()).instances.size(), 3u);
   }

@@ -1,0 +1,86 @@
+// Voxel-mean density normalisation: cell means of points, colours and normals, first-point
+// order, the cell count of a dense plane, and the cases that leave the cloud unchanged.
+#include "dimr/ros/density_filter.h"
+
+#include <gtest/gtest.h>
+
+namespace dimr::ros1 {
+namespace {
+
+TEST(VoxelMeanFilter, CellMeansOfPointsColoursAndNormals) {
+  BackendCloud c;
+  // Cell (0,0,0) relative to the lower corner (0, 0, 0): two points; cell (10,0,0): one point.
+  c.points = {{0.01f, 0.01f, 0.01f}, {0.5f, 0.0f, 0.0f}, {0.03f, 0.02f, 0.04f}};
+  c.colors = {{1.0f, 0.0f, 0.2f}, {0.5f, 0.5f, 0.5f}, {0.0f, 1.0f, 0.4f}};
+  c.normals = {{1.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 1.0f}, {0.0f, 1.0f, 0.0f}};
+  const VoxelFilterStats s = VoxelMeanFilter(&c, 0.045);
+  EXPECT_TRUE(s.applied);
+  EXPECT_EQ(s.input_points, 3u);
+  EXPECT_EQ(s.output_points, 2u);
+  ASSERT_EQ(c.points.size(), 2u);
+  ASSERT_EQ(c.colors.size(), 2u);
+  ASSERT_EQ(c.normals.size(), 2u);
+  // Order of the cells' first points: the two-point cell first.
+  EXPECT_NEAR(c.points[0].x(), 0.02f, 1e-6f);
+  EXPECT_NEAR(c.points[0].y(), 0.015f, 1e-6f);
+  EXPECT_NEAR(c.points[0].z(), 0.025f, 1e-6f);
+  EXPECT_NEAR(c.colors[0].x(), 0.5f, 1e-6f);
+  EXPECT_NEAR(c.colors[0].y(), 0.5f, 1e-6f);
+  EXPECT_NEAR(c.colors[0].z(), 0.3f, 1e-6f);
+  EXPECT_NEAR(c.normals[0].x(), std::sqrt(0.5f), 1e-6f);
+  EXPECT_NEAR(c.normals[0].y(), std::sqrt(0.5f), 1e-6f);
+  EXPECT_NEAR(c.normals[0].z(), 0.0f, 1e-6f);
+  EXPECT_EQ(c.points[1], Eigen::Vector3f(0.5f, 0.0f, 0.0f));
+  EXPECT_EQ(c.normals[1], Eigen::Vector3f(0.0f, 0.0f, 1.0f));
+}
+
+TEST(VoxelMeanFilter, OppositeNormalsBecomeUnknownAndMissingChannelsStayMissing) {
+  BackendCloud c;
+  c.points = {{0.0f, 0.0f, 0.0f}, {0.01f, 0.0f, 0.0f}};
+  c.normals = {{0.0f, 0.0f, 1.0f}, {0.0f, 0.0f, -1.0f}};
+  VoxelMeanFilter(&c, 0.05);
+  ASSERT_EQ(c.points.size(), 1u);
+  EXPECT_TRUE(c.colors.empty());
+  ASSERT_EQ(c.normals.size(), 1u);
+  EXPECT_EQ(c.normals[0], Eigen::Vector3f::Zero());
+}
+
+TEST(VoxelMeanFilter, DensePlaneGetsOnePointPerOccupiedCell) {
+  BackendCloud c;
+  for (int i = 0; i <= 200; ++i)
+    for (int j = 0; j <= 200; ++j)
+      c.points.emplace_back(2.0f + i * 0.005f, -1.0f + j * 0.005f, 0.7f);
+  ASSERT_EQ(c.points.size(), 40401u);
+  const VoxelFilterStats s = VoxelMeanFilter(&c, 0.045);
+  // x - 2 and y + 1 in [0, 1]: cells 0..22 on each axis, one layer in z.
+  EXPECT_EQ(s.output_points, 23u * 23u);
+  EXPECT_EQ(c.points.size(), 23u * 23u);
+  for (const Eigen::Vector3f& p : c.points) {
+    EXPECT_GE(p.x(), 2.0f - 1e-5f);
+    EXPECT_LE(p.x(), 3.0f + 1e-5f);
+    EXPECT_NEAR(p.z(), 0.7f, 1e-6f);
+  }
+  // A second pass at the same size keeps every cell (idempotent up to the grid shift).
+  const std::size_t n = c.points.size();
+  VoxelMeanFilter(&c, 0.045);
+  EXPECT_GE(c.points.size(), n * 9 / 10);
+  EXPECT_LE(c.points.size(), n);
+}
+
+TEST(VoxelMeanFilter, LeavesTheCloudAloneWhenOffEmptyOrTooLarge) {
+  BackendCloud c;
+  c.points = {{0.0f, 0.0f, 0.0f}, {0.001f, 0.0f, 0.0f}};
+  EXPECT_FALSE(VoxelMeanFilter(&c, 0.0).applied);
+  EXPECT_EQ(c.points.size(), 2u);
+  BackendCloud empty;
+  EXPECT_FALSE(VoxelMeanFilter(&empty, 0.045).applied);
+  BackendCloud huge;
+  huge.points = {{0.0f, 0.0f, 0.0f}, {1.0e5f, 0.0f, 0.0f}, {1.0e5f, 0.0f, 0.0f}};
+  const VoxelFilterStats s = VoxelMeanFilter(&huge, 0.01);  // 1e7 cells > 2^21
+  EXPECT_FALSE(s.applied);
+  EXPECT_EQ(huge.points.size(), 3u);
+  EXPECT_EQ(s.output_points, 3u);
+}
+
+}  // namespace
+}  // namespace dimr::ros1
