@@ -20,6 +20,8 @@ PACKAGES=(
   libtorch-dev libopenblas0-openmp
   # tests and benchmarks
   libgtest-dev libgmock-dev libbenchmark-dev
+  # scripts/demo.sh: rviz on a virtual X server, screenshot with ImageMagick's import
+  rviz xvfb imagemagick
 )
 
 DO_APT=1

@@ -72,6 +72,9 @@ std::vector<std::string> SaveSceneFiles(const SceneMeshes& scene, const std::str
   j["scene_revision"] = scene.scene_revision;
   j["model_version"] = scene.model_version;
   j["pool_id"] = scene.pool_id;
+  j["input_points"] = scene.input_points;
+  j["processing_s"] = scene.processing_time;
+  j["latency_s"] = scene.latency;
   j["instances"] = nlohmann::json::array();
   for (const InstanceMesh& inst : scene.instances) {
     nlohmann::json e;

@@ -55,6 +55,9 @@ TEST(SceneFiles, MeshesInSceneFrameAndJson) {
   scene.header.frame_id = "map";
   scene.header.stamp.sec = 12;
   scene.instances = {BoxInstance(3, 1.0, M_PI / 2), BoxInstance(8, -2.0, 0.0)};
+  scene.input_points = 4321;
+  scene.processing_time = 1.5f;
+  scene.latency = 2.25f;
   scene.instances[1].mesh.triangles.clear();  // an instance without a mesh: JSON only
   const fs::path dir = fs::temp_directory_path() / ("dimr_save_" + std::to_string(getpid()));
   const auto files = SaveSceneFiles(scene, dir.string(), "ply");
@@ -72,6 +75,9 @@ TEST(SceneFiles, MeshesInSceneFrameAndJson) {
   std::ifstream f(files[1]);
   const nlohmann::json j = nlohmann::json::parse(f);
   EXPECT_EQ(j["frame_id"], "map");
+  EXPECT_EQ(j["input_points"], 4321);
+  EXPECT_NEAR(j["processing_s"].get<double>(), 1.5, 1e-6);
+  EXPECT_NEAR(j["latency_s"].get<double>(), 2.25, 1e-6);
   ASSERT_EQ(j["instances"].size(), 2u);
   EXPECT_EQ(j["instances"][0]["id"], 3);
   EXPECT_EQ(j["instances"][0]["mesh_file"], "instance_3_table.ply");
