@@ -521,6 +521,12 @@ class Composer {
     o.mesh.attributes.clear();
     o.scale = size;
     o.material = MakeMaterial(&rng_, o.role, o.rfs_class);
+    if (!m.mesh.vertex_colors.empty()) {  // real furniture: its own (mean) colour
+      Vec3 mean = Vec3::Zero();
+      for (const auto& c : m.mesh.vertex_colors)
+        for (int k = 0; k < 3; ++k) mean[k] += std::pow(c[k] / 255.0, 2.2);
+      o.material.albedo = mean / static_cast<double>(m.mesh.vertex_colors.size());
+    }
     return o;
   }
 

@@ -18,6 +18,7 @@
 #include "dimr/core/parallel.h"
 #include "dimr/core/timing.h"
 #include "dimr/data/labels.h"
+#include "dimr/data/real_furniture.h"
 #include "dimr/data/scan2cad_io.h"
 #include "dimr/data/scannet_io.h"
 #include "dimr/data/shapenet_io.h"
@@ -47,6 +48,8 @@ struct SynthOptions {
   int jobs = 0;
   double drift = 0.0;  // translation drift per frame (m); rotation = drift * 40 deg/m
   int map_cloud_every = 10;
+  double real_furniture = 0.0;  // fraction of CAD objects / distractors from the import
+  std::string real_furniture_dir = "data/sh3d";
   bool quiet = false;
   bool render = false;
 };
@@ -136,6 +139,19 @@ RunResult RunSynth(const SynthOptions& o) {
   if (!(o.drift >= 0 && o.drift <= 0.05))
     throw dimr::InvalidArgument("--drift must be in [0, 0.05] m per frame");
   if (o.out.empty()) throw dimr::InvalidArgument("--out is required");
+  if (!(o.real_furniture >= 0 && o.real_furniture <= 1))
+    throw dimr::InvalidArgument("--real-furniture must be in [0, 1], got " +
+                                std::to_string(o.real_furniture));
+  // Real furniture (docs/cad_library.md): only the train split of the import, whatever --split.
+  dimr::data::ModelSource source = dimr::data::DefaultModelSource();
+  if (o.real_furniture > 0) {
+    auto lib = std::make_shared<const dimr::data::RealFurnitureLibrary>(
+        dimr::data::LoadRealFurniture(o.real_furniture_dir, "train"));
+    if (lib->size() == 0)
+      throw dimr::InvalidArgument("--real-furniture-dir " + o.real_furniture_dir +
+                                  ": the train split has no models");
+    source = dimr::data::MixedModelSource(lib, o.real_furniture);
+  }
   int shard = 0, shards = 1;
   ParseShard(o.shard, &shard, &shards);
 #ifndef DIMR_HAVE_ROS
@@ -171,7 +187,7 @@ RunResult RunSynth(const SynthOptions& o) {
     const dimr::Stopwatch scene_time;
     const std::uint64_t seed = dimr::data::SceneSeed(o.seed, o.split, i);
     const std::string name = dimr::data::SceneName(o.split, i);
-    const GeneratedScene g = dimr::data::GenerateScene(config, seed, name);
+    const GeneratedScene g = dimr::data::GenerateScene(config, seed, name, source);
     dimr::data::WriteScanNetScene((out / "scans").string(), g.scene);
 #ifdef DIMR_HAVE_ROS
     if (o.bags) {
@@ -248,6 +264,13 @@ void AddCommon(CLI::App& app, SynthOptions* o) {
   app.add_option("--jobs", o->jobs, "Scenes generated in parallel (0 = all cores)")
       ->capture_default_str();
   app.add_option("--drift", o->drift, "Registration drift per frame in metres (0 = none)")
+      ->capture_default_str();
+  app.add_option("--real-furniture", o->real_furniture,
+                 "Fraction of CAD objects and distractors drawn from the imported real furniture "
+                 "(train split of `dimr cad import`; 0 = procedural only)")
+      ->capture_default_str();
+  app.add_option("--real-furniture-dir", o->real_furniture_dir,
+                 "Folder written by `dimr cad import`")
       ->capture_default_str();
 }
 
