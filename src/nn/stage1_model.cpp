@@ -138,6 +138,27 @@ class Stage1NetImpl : public torch::nn::Module {
     return h;
   }
 
+  // The heads at inference (eval mode only): Linear -> BatchNorm -> LeakyReLU folded into one
+  // addmm per MLP (W' = diag(g / sqrt(var + eps)) W, b' = (b - mean) g / sqrt(var + eps) +
+  // beta), the same function as Heads() up to float rounding and one op instead of three.
+  HeadOutput HeadsFolded(const torch::Tensor& f) {
+    auto mlp = [&](torch::nn::Sequential& seq, torch::nn::Linear& last) {
+      auto lin = seq[0]->as<torch::nn::Linear>();
+      auto bn = seq[1]->as<torch::nn::BatchNorm1d>();
+      const torch::Tensor k = bn->weight / torch::sqrt(bn->running_var + bn->options.eps());
+      const torch::Tensor w = lin->weight * k.unsqueeze(1);
+      const torch::Tensor b = (lin->bias - bn->running_mean) * k + bn->bias;
+      const torch::Tensor hidden = torch::leaky_relu(torch::addmm(b, f, w.t()), 0.01);
+      return last->forward(hidden);
+    };
+    HeadOutput h;
+    h.features = f;
+    h.semantic = linear->forward(f);
+    h.offset = mlp(offset, offset_linear);
+    h.heading = mlp(angle, angle_linear);
+    return h;
+  }
+
   SparseUNet backbone{nullptr};
   torch::nn::Linear linear{nullptr}, offset_linear{nullptr}, angle_linear{nullptr};
   torch::nn::Sequential offset{nullptr}, angle{nullptr};
@@ -311,16 +332,43 @@ struct Stage1Model::Impl {
     return h;
   }
 
-  // One network pass on a scene view (eval mode, no gradient: the caller's guard).
-  HeadOutput ForwardScene(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
+  // One network pass on a scene view (eval mode, no gradient: the caller's guard), with the
+  // heads run on the voxels instead of the points. Devoxelize is a gather and every head is a
+  // row-wise function of its input (eval-mode BatchNorm uses the running statistics), so a
+  // point's outputs are its voxel's row: the same numbers as heads on the gathered point
+  // features, for ~3-5x fewer rows at 5 cm (a 100k-point room has ~25k voxels). `h` holds
+  // [M, ...] voxel rows, `point_to_voxel` [N] the row of each point.
+  struct VoxelPass {
+    HeadOutput h;
+    torch::Tensor point_to_voxel;  // [N] int64, CPU
+  };
+  VoxelPass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing,
+                               NetworkFrame* frame) {
     const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
     *frame = in.frame;
     const int64_t n = static_cast<int64_t>(scene.size);
-    BatchTensors t;
-    t.batch_size = 1;
-    t.voxel = FromVector(in.voxel, torch::kInt32, {n, 4});
-    t.features = FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device);
-    return Forward(t, timing);
+    const torch::Tensor voxel = FromVector(in.voxel, torch::kInt32, {n, 4});
+    const torch::Tensor features =
+        FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device);
+    const auto t0 = std::chrono::steady_clock::now();
+    const int64_t min_extent = int64_t{1} << (config.widths.size() - 1);
+    Voxelized v = Voxelize(voxel, features, 1, {min_extent, min_extent, min_extent});
+    const auto t1 = std::chrono::steady_clock::now();
+    v.tensor.context()->BuildKernelMaps(static_cast<int>(config.widths.size()));
+    const auto t1b = std::chrono::steady_clock::now();
+    SparseTensor y = net->backbone->forward(v.tensor);
+    const auto t2 = std::chrono::steady_clock::now();
+    VoxelPass pass;
+    pass.h = net->HeadsFolded(y.features());
+    pass.point_to_voxel = v.map.point_to_voxel.to(torch::kCPU).to(torch::kInt64).contiguous();
+    if (timing) {
+      const auto t3 = std::chrono::steady_clock::now();
+      timing->voxelize_ms = Ms(t0, t1);
+      timing->kernel_map_ms = Ms(t1, t1b);
+      timing->unet_ms = Ms(t1b, t2);
+      timing->heads_ms = Ms(t2, t3);
+    }
+    return pass;
   }
 };
 
@@ -431,12 +479,19 @@ struct PassTensors {
   torch::Tensor prob, offset, heading_prob, heading_residual;
 };
 
+// dst[j] += src[j] (vectorised: the arrays never overlap).
+void AddRow(float* __restrict dst, const float* __restrict src, int count) {
+  for (int j = 0; j < count; ++j) dst[j] += src[j];
+}
+
 PassTensors ToPassTensors(const HeadOutput& h) {
   PassTensors p;
   p.prob = torch::softmax(h.semantic, 1).to(torch::kCPU).contiguous();
   p.offset = h.offset.to(torch::kCPU).contiguous();
-  p.heading_prob =
-      torch::softmax(h.heading.slice(1, 0, kHeadingBins), 1).to(torch::kCPU).contiguous();
+  // (softmax of a contiguous copy: on the strided slice it is several times slower)
+  p.heading_prob = torch::softmax(h.heading.slice(1, 0, kHeadingBins).contiguous(), 1)
+                       .to(torch::kCPU)
+                       .contiguous();
   p.heading_residual =
       h.heading.slice(1, kHeadingBins, 2 * kHeadingBins).to(torch::kCPU).contiguous();
   return p;
@@ -461,37 +516,94 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
   Stage1Output out;
   const std::size_t n = scene.size;
   const int nc = impl_->config.num_classes;
-  {
-    const HeadOutput h = impl_->ForwardScene(scene, &local, &out.frame);
-    const auto t0 = std::chrono::steady_clock::now();
-    const PassTensors p = ToPassTensors(h);
-    const float* pp = p.prob.data_ptr<float>();
-    out.semantic_prob.assign(pp, pp + n * nc);
-    const float* po = p.offset.data_ptr<float>();
-    out.offsets.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      out.offsets[i] = Eigen::Vector3f(po[3 * i], po[3 * i + 1], po[3 * i + 2]);
+  // Every pass is mapped back to the input frame on its voxel rows (M, a few times fewer
+  // than the points) into one row per voxel: [semantic prob (nc) | heading prob (12) |
+  // heading residual (12) | offset (3)]; each point then adds its voxel's row to its own
+  // row of one N x row accumulator, split into `out` at the end. The gather of voxel rows
+  // is bound by memory latency (a pass's voxel rows are ~5 MB, in another order than the
+  // points): the rows a few points ahead are prefetched.
+  const int off_sem = 0, off_hp = nc, off_hr = nc + kHeadingBins, off_o = nc + 2 * kHeadingBins;
+  const int row = off_o + 3;
+  std::vector<float> acc;
+  std::vector<float> vrow;
+  // Adds one pass. A heading h of the input is sign * h (+ pi if mirrored) + theta in the
+  // pass's scene: bin b here is bin (m * 6 + sign * b + shift) there, residual times sign;
+  // offsets are rotated back by -theta, then mirrored.
+  auto add_pass = [&](const Impl::VoxelPass& pass, int m, int k, bool first) {
+    const PassTensors p = ToPassTensors(pass.h);
+    const int64_t mv = p.prob.size(0);
+    const float* rp = p.prob.data_ptr<float>();
+    const float* ro = p.offset.data_ptr<float>();
+    const float* rhb = p.heading_prob.data_ptr<float>();
+    const float* rhr = p.heading_residual.data_ptr<float>();
+    const double sign = m == 1 ? -1.0 : 1.0;
+    const double theta = 2.0 * M_PI * k / rotations;
+    const double c = std::cos(theta), s = std::sin(theta);
+    const int shift = kHeadingBins * k / rotations;
+    int to[kHeadingBins];
+    for (int b = 0; b < kHeadingBins; ++b) {
+      to[b] = ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
+              kHeadingBins;
     }
-    const float* hb = p.heading_prob.data_ptr<float>();
-    const float* hr = p.heading_residual.data_ptr<float>();
-    out.heading_prob.assign(hb, hb + n * kHeadingBins);
-    out.heading_residual.assign(hr, hr + n * kHeadingBins);
+    const float fsign = static_cast<float>(sign);
+    vrow.resize(static_cast<std::size_t>(mv) * row);
+    for (int64_t v = 0; v < mv; ++v) {
+      float* r = vrow.data() + v * row;
+      std::copy_n(rp + v * nc, nc, r + off_sem);
+      const float* rhbi = rhb + v * kHeadingBins;
+      const float* rhri = rhr + v * kHeadingBins;
+      for (int b = 0; b < kHeadingBins; ++b) {
+        r[off_hp + b] = rhbi[to[b]];
+        r[off_hr + b] = fsign * rhri[to[b]];
+      }
+      const double ox = ro[3 * v], oy = ro[3 * v + 1];
+      r[off_o] = static_cast<float>(sign * (c * ox + s * oy));
+      r[off_o + 1] = static_cast<float>(-s * ox + c * oy);
+      r[off_o + 2] = ro[3 * v + 2];
+    }
+    const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();
+    float* __restrict a = acc.data();
+    const float* __restrict src = vrow.data();
+    constexpr std::size_t kAhead = 16;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (i + kAhead < n) {
+        const float* ahead = src + p2v[i + kAhead] * row;
+        for (int j = 0; j < row; j += 16) __builtin_prefetch(ahead + j);
+        __builtin_prefetch(ahead + row - 1);
+      }
+      if (first) {
+        std::copy_n(src + p2v[i] * row, row, a + i * row);
+      } else {
+        AddRow(a + i * row, src + p2v[i] * row, row);
+      }
+    }
+  };
+  acc.resize(n * row);
+  {
+    const Impl::VoxelPass pass = impl_->ForwardSceneVoxels(scene, &local, &out.frame);
+    const auto t0 = std::chrono::steady_clock::now();
+    add_pass(pass, 0, 0, /*first=*/true);
     if (with_features) {
-      torch::Tensor f = h.features.to(torch::kCPU).contiguous();
-      out.features.assign(f.data_ptr<float>(), f.data_ptr<float>() + f.numel());
+      const torch::Tensor f = pass.h.features.to(torch::kCPU).contiguous();
+      const int64_t c0 = f.size(1);
+      const float* pf = f.data_ptr<float>();
+      const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();
+      out.features.resize(n * c0);
+      for (std::size_t i = 0; i < n; ++i) {
+        std::copy_n(pf + p2v[i] * c0, c0, out.features.data() + i * c0);
+      }
     }
     local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
   }
+  int passes = 1;
   if (rotations > 1 || mirror) {
-    // Every further pass runs on the moved points (one buffer, colours shared) and is added
-    // straight from its output tensors into `out`, mapped back to the input frame.
+    // Every further pass runs on the moved points (one buffer, colours shared).
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     for (std::size_t i = 0; i < n; ++i) centre += scene.points[i].head<2>().cast<double>();
     centre /= static_cast<double>(n);
     std::vector<Eigen::Vector3f> moved(n);
     ScenePoints view = scene;
     view.points = moved.data();
-    int passes = 1;
     for (int m = 0; m < (mirror ? 2 : 1); ++m) {
       const double sign = m == 1 ? -1.0 : 1.0;  // x -> sign * x before the rotation
       for (int k = 0; k < rotations; ++k) {
@@ -507,41 +619,10 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
         }
         Stage1Timing t;
         NetworkFrame unused;
-        const HeadOutput h = impl_->ForwardScene(view, &t, &unused);
+        const Impl::VoxelPass pass = impl_->ForwardSceneVoxels(view, &t, &unused);
         const auto t0 = std::chrono::steady_clock::now();
-        const PassTensors p = ToPassTensors(h);
+        add_pass(pass, m, k, /*first=*/false);
         ++passes;
-        const float* rp = p.prob.data_ptr<float>();
-        const float* ro = p.offset.data_ptr<float>();
-        const float* rhb = p.heading_prob.data_ptr<float>();
-        const float* rhr = p.heading_residual.data_ptr<float>();
-        // A heading h of the input is sign * h (+ pi if mirrored) + theta in the moved scene:
-        // bin b here is bin (m * 6 + sign * b + shift) there, residual times sign.
-        const int shift = kHeadingBins * k / rotations;
-        // The bin map of this pass, once (two integer divisions per point and bin before).
-        int to[kHeadingBins];
-        for (int b = 0; b < kHeadingBins; ++b) {
-          to[b] =
-              ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
-              kHeadingBins;
-        }
-        const float fsign = static_cast<float>(sign);
-        for (std::size_t i = 0; i < n; ++i) {
-          float* sp = out.semantic_prob.data() + i * nc;
-          const float* rpi = rp + i * nc;
-          for (int j = 0; j < nc; ++j) sp[j] += rpi[j];
-          const Eigen::Vector3f o(ro[3 * i], ro[3 * i + 1], ro[3 * i + 2]);
-          out.offsets[i] += Eigen::Vector3f(static_cast<float>(sign * (c * o.x() + s * o.y())),
-                                            static_cast<float>(-s * o.x() + c * o.y()), o.z());
-          float* hp = out.heading_prob.data() + i * kHeadingBins;
-          float* hres = out.heading_residual.data() + i * kHeadingBins;
-          const float* rhbi = rhb + i * kHeadingBins;
-          const float* rhri = rhr + i * kHeadingBins;
-          for (int b = 0; b < kHeadingBins; ++b) {
-            hp[b] += rhbi[to[b]];
-            hres[b] += fsign * rhri[to[b]];
-          }
-        }
         t.heads_ms += Ms(t0, std::chrono::steady_clock::now());
         local.voxelize_ms += t.voxelize_ms;
         local.kernel_map_ms += t.kernel_map_ms;
@@ -549,17 +630,29 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
         local.heads_ms += t.heads_ms;
       }
     }
-    const float inv = 1.0f / static_cast<float>(passes);
-    for (auto& v : out.semantic_prob) v *= inv;
-    for (auto& v : out.heading_prob) v *= inv;
-    for (auto& v : out.heading_residual) v *= inv;
-    for (auto& o : out.offsets) o *= inv;
   }
+  // Means and the split into `out`.
+  const auto t0 = std::chrono::steady_clock::now();
+  const float inv = 1.0f / static_cast<float>(passes);
+  out.semantic_prob.resize(n * nc);
+  out.heading_prob.resize(n * kHeadingBins);
+  out.heading_residual.resize(n * kHeadingBins);
+  out.offsets.resize(n);
   out.semantic.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const float* row = out.semantic_prob.data() + i * nc;
-    out.semantic[i] = static_cast<int>(std::max_element(row, row + nc) - row);
+    const float* a = acc.data() + i * row;
+    float* sp = out.semantic_prob.data() + i * nc;
+    for (int j = 0; j < nc; ++j) sp[j] = a[off_sem + j] * inv;
+    float* hp = out.heading_prob.data() + i * kHeadingBins;
+    float* hr = out.heading_residual.data() + i * kHeadingBins;
+    for (int b = 0; b < kHeadingBins; ++b) {
+      hp[b] = a[off_hp + b] * inv;
+      hr[b] = a[off_hr + b] * inv;
+    }
+    out.offsets[i] = Eigen::Vector3f(a[off_o], a[off_o + 1], a[off_o + 2]) * inv;
+    out.semantic[i] = static_cast<int>(std::max_element(sp, sp + nc) - sp);
   }
+  local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
   if (timing) *timing = local;
   return out;
 }

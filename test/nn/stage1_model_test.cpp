@@ -577,6 +577,53 @@ TEST(Stage1Model, NetworkInputMatchesTheTrainingBatch) {
   EXPECT_EQ(in.extent[2], zmax + 1);
 }
 
+// Inference runs the heads on the voxels and gathers each point's row (issue 21); training
+// runs them on the gathered point features, with BatchNorm unfolded. Both must give the same
+// per-point outputs: the semantic cross-entropy, offset L1 and heading-bin cross-entropy that
+// EvaluateLoss computes on the training path are recomputed here from Predict's per-point
+// outputs. A wrong point ->
+// voxel row (a shifted or unsorted index) changes both by far more than the tolerance.
+TEST(Stage1Model, VoxelHeadsGiveThePointPathsOutputs) {
+  const Stage1Sample s = TinyRoom(6);
+  Stage1Model model(TinyConfig(), 11);
+  // A few steps so that the BatchNorm running statistics are not the identity.
+  Stage1TrainOptions opt;
+  opt.epochs = 2;
+  opt.batch_size = 1;
+  opt.seed = 4;
+  model.Train({s}, opt);
+  Stage1InputConfig input = TinyConfig().input;
+  const Stage1Batch batch = MakeStage1Batch({&s}, input, nullptr, 0);
+  const Stage1LossTerms ref = model.EvaluateLoss(batch);
+  const Stage1Output out = model.Predict(s);
+  const std::size_t n = s.points.size();
+  ASSERT_EQ(batch.semantic.size(), n);
+  double ce = 0, l1 = 0, hcls = 0;
+  int labelled = 0, valid = 0, boxed = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (batch.semantic[i] != kStage1Ignore) {
+      ce -= std::log(out.semantic_prob[i * kStage1Classes + batch.semantic[i]]);
+      ++labelled;
+    }
+    if (batch.heading_bin[i] != kStage1Ignore) {
+      hcls -= std::log(out.heading_prob[i * kHeadingBins + batch.heading_bin[i]]);
+      ++boxed;
+    }
+    if (batch.offset_valid[i]) {
+      for (int a = 0; a < 3; ++a)
+        l1 += std::abs(out.offsets[i][a] - batch.offset_target[3 * i + a]);
+      ++valid;
+    }
+  }
+  ASSERT_GT(labelled, 0);
+  ASSERT_GT(valid, 0);
+  EXPECT_NEAR(ce / labelled, ref.semantic, 1e-4 * std::max(1.0, ref.semantic));
+  EXPECT_NEAR(l1 / valid, ref.offset_norm, 1e-4 * std::max(1.0, ref.offset_norm));
+  ASSERT_GT(boxed, 0);
+  EXPECT_NEAR(hcls / boxed, ref.heading_cls, 1e-4 * std::max(1.0, ref.heading_cls));
+  EXPECT_GT(ref.semantic, 0.0);
+}
+
 TEST(Stage1Model, FlatRoomsPlanesAndSinglePointsSegment) {
   const Stage1Model model(SixLevels(), 3);
   // A ScanNet-like room whose points reach only 1.37 m: 28 voxels high at 5 cm, fewer than the
