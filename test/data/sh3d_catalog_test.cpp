@@ -492,6 +492,58 @@ TEST(RealFurniture, WriteLoadAndMixIntoRooms) {
   EXPECT_EQ(real, chairs);
 }
 
+// ---------------------------------------------------------------- the CLI
+TEST(Sh3dCli, ImportIsDeterministicAndWritesAttribution) {
+  const std::string props =
+      "name=Test catalogue\nlicense=CC-BY 3.0\nprovider=tests\n"
+      "id#1=t#chair\nname#1=Chair\ncategory#1=Living room\nmodel#1=/m/box.obj\nwidth#1=40\n"
+      "depth#1=50\nheight#1=90\ncreator#1=Alice\n"
+      "id#2=t#bed\nname#2=Bed\ncategory#2=Bedroom\nmodel#2=/m/box.obj\nwidth#2=140\n"
+      "depth#2=200\nheight#2=60\ncreator#2=Bob\n"
+      "id#3=t#car\nname#3=Car\ncategory#3=Vehicles\nmodel#3=/m/box.obj\nwidth#3=1\ndepth#3=1\n"
+      "height#3=1\n"
+      "id#4=t#broken\nname#4=Table\ncategory#4=Office\nmodel#4=/m/missing.obj\nwidth#4=100\n"
+      "depth#4=60\nheight#4=75\n";
+  const auto zip = MakeZip({{"PluginFurnitureCatalog.properties", props},
+                            {"m/box.obj", BoxObj()},
+                            {"m/box.mtl", "newmtl red\nKd 1 0 0\n"}});
+  const fs::path dir = testing::FreshTempDir("sh3d_cli");
+  {
+    std::ofstream f(dir / "Test.sh3f", std::ios::binary);
+    f.write(reinterpret_cast<const char*>(zip.data()), static_cast<std::streamsize>(zip.size()));
+  }
+  std::string first;
+  for (int run = 0; run < 2; ++run) {
+    const std::string out = (dir / ("out" + std::to_string(run))).string();
+    auto [rc, text] = testing::RunCli("cad import --dir " + dir.string() + " --out " + out +
+                                      " --watertight-res 16");
+    ASSERT_EQ(rc, 0) << text;
+    EXPECT_NE(text.find("imported 2 models"), std::string::npos) << text;
+    EXPECT_NE(text.find("1 skipped"), std::string::npos) << text;  // the missing OBJ
+    EXPECT_NE(text.find("Test.sh3f:m/missing.obj"), std::string::npos) << text;
+    const std::string cat = testing::ReadFileText(fs::path(out) / "catalog.json");
+    EXPECT_NE(cat.find("\"rule\": \"chair\""), std::string::npos);
+    EXPECT_NE(cat.find("\"rule\": \"bed\""), std::string::npos);
+    const std::string att = testing::ReadFileText(fs::path(out) / "ATTRIBUTION.md");
+    EXPECT_NE(att.find("Alice"), std::string::npos);
+    EXPECT_NE(att.find("CC-BY 3.0"), std::string::npos);
+    if (run == 0) {
+      first = cat;
+    } else {
+      EXPECT_EQ(cat, first);  // deterministic bytes
+    }
+  }
+  // A corrupt catalogue: a clear error naming the file, exit code != 0.
+  {
+    std::ofstream f(dir / "Bad.sh3f", std::ios::binary);
+    f << "not a zip at all, just text";
+  }
+  auto [rc, text] = testing::RunCli("cad import --catalog " + (dir / "Bad.sh3f").string() +
+                                    " --out " + (dir / "bad").string());
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(text.find("Bad.sh3f"), std::string::npos) << text;
+}
+
 // ---------------------------------------------------------------- the installed catalogues
 TEST(Sh3dInstalled, ClassMapFrameAndCounts) {
   const std::string dir = DefaultSh3dFurnitureDir();
