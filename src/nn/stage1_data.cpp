@@ -15,6 +15,7 @@
 #include <thread>
 #include <utility>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::nn {
@@ -428,6 +429,122 @@ void AugmentConfig::Validate() const {
   if (!(elastic_mag0 >= 0 && std::isfinite(elastic_mag0))) fail("elastic_mag0 must be >= 0");
   if (!(elastic_mag1 >= 0 && std::isfinite(elastic_mag1))) fail("elastic_mag1 must be >= 0");
   if (max_points < 1) fail("max_points must be >= 1");
+  realism.Validate();
+}
+
+namespace {
+const config::Fields<RealismAugment>& RealismFields() {
+  using R = RealismAugment;
+  static const config::Fields<R> fields =
+      config::Fields<R>("stage1 realism augmentation")
+          .Number(
+              "color_jitter", [](R& c) -> double& { return c.color_jitter; }, "",
+              "sigma of the per-scene channel gain (offset: half of it)", 0.0, 1.0)
+          .Number(
+              "color_contrast", [](R& c) -> double& { return c.color_contrast; }, "",
+              "largest per-scene contrast stretch about the mean colour", 1.0, 10.0)
+          .Number(
+              "color_noise", [](R& c) -> double& { return c.color_noise; }, "",
+              "sigma of per-point colour noise", 0.0, 1.0)
+          .Number(
+              "greyscale", [](R& c) -> double& { return c.greyscale; }, "",
+              "probability of a greyscale scene", 0.0, 1.0)
+          .Number(
+              "color_drop", [](R& c) -> double& { return c.color_drop; }, "",
+              "probability of a scene without colour (all 0.5)", 0.0, 1.0)
+          .Number(
+              "point_noise", [](R& c) -> double& { return c.point_noise; }, "m",
+              "sigma of per-point Gaussian displacement", 0.0, 0.1)
+          .Number(
+              "scale_min", [](R& c) -> double& { return c.scale_min; }, "",
+              "smallest per-scene isotropic scale", 0.5, 2.0)
+          .Number(
+              "scale_max", [](R& c) -> double& { return c.scale_max; }, "",
+              "largest per-scene isotropic scale", 0.5, 2.0)
+          .Check([](const R& c) -> std::string {
+            return c.scale_min > c.scale_max ? "scale_min > scale_max" : "";
+          })
+          .Number(
+              "point_dropout", [](R& c) -> double& { return c.point_dropout; }, "",
+              "largest fraction of points dropped per scene", 0.0, 0.9);
+  return fields;
+}
+}  // namespace
+
+bool RealismAugment::any() const {
+  return any_color() || point_noise > 0 || scale_min != 1 || scale_max != 1 || point_dropout > 0;
+}
+
+bool RealismAugment::any_color() const {
+  return color_jitter > 0 || color_contrast > 1 || color_noise > 0 || greyscale > 0 ||
+         color_drop > 0;
+}
+
+void RealismAugment::Validate() const { RealismFields().Validate(*this); }
+
+std::string RealismAugment::ToString() const { return RealismFields().Format(*this); }
+
+RealismAugment RealismAugment::FromString(const std::string& text) {
+  const RealismAugment r = RealismFields().Parse(text);
+  r.Validate();
+  return r;
+}
+
+void AugmentRealismPoints(std::vector<Eigen::Vector3f>* points, const RealismAugment& c,
+                          std::mt19937_64* rng) {
+  const double scale = c.scale_min + (c.scale_max - c.scale_min) * Uniform01(rng);
+  if (scale != 1.0) {
+    for (auto& p : *points) p *= static_cast<float>(scale);
+  }
+  if (c.point_noise > 0) {
+    for (auto& p : *points) {
+      for (int k = 0; k < 3; ++k) p[k] += static_cast<float>(c.point_noise * Normal(rng));
+    }
+  }
+}
+
+std::vector<Eigen::Vector3f> AugmentRealismColors(const std::vector<Eigen::Vector3f>& colors,
+                                                  const RealismAugment& c, std::mt19937_64* rng) {
+  std::vector<Eigen::Vector3f> out = colors;
+  if (out.empty()) return out;
+  // Draws in a fixed order, all of them every time, so one option does not shift the others.
+  const double u_drop = Uniform01(rng), u_grey = Uniform01(rng), u_con = Uniform01(rng);
+  Eigen::Vector3d gain, offset;
+  for (int k = 0; k < 3; ++k) gain[k] = 1.0 + c.color_jitter * Normal(rng);
+  for (int k = 0; k < 3; ++k) offset[k] = 0.5 * c.color_jitter * Normal(rng);
+  if (u_drop < c.color_drop) {
+    for (auto& v : out) v.setConstant(0.5f);
+    return out;
+  }
+  if (u_grey < c.greyscale) {
+    for (auto& v : out) v.setConstant(0.299f * v[0] + 0.587f * v[1] + 0.114f * v[2]);
+  }
+  const double contrast = 1.0 + (c.color_contrast - 1.0) * u_con;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (const auto& v : out) mean += v.cast<double>();
+  mean /= static_cast<double>(out.size());
+  for (auto& v : out) {
+    for (int k = 0; k < 3; ++k) {
+      double x = mean[k] + contrast * (v[k] - mean[k]);
+      x = gain[k] * x + offset[k];
+      if (c.color_noise > 0) x += c.color_noise * Normal(rng);
+      v[k] = static_cast<float>(std::clamp(x, 0.0, 1.0));
+    }
+  }
+  return out;
+}
+
+void AugmentRealismDropout(std::vector<std::size_t>* keep, const RealismAugment& c,
+                           std::mt19937_64* rng) {
+  if (!(c.point_dropout > 0) || keep->size() < 2) return;
+  const double fraction = c.point_dropout * Uniform01(rng);
+  std::vector<std::size_t> kept;
+  kept.reserve(keep->size());
+  for (std::size_t i : *keep) {
+    if (Uniform01(rng) >= fraction) kept.push_back(i);
+  }
+  if (kept.empty()) kept.push_back((*keep)[0]);
+  *keep = std::move(kept);
 }
 
 void Stage1InputConfig::Validate() const {
@@ -612,6 +729,14 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     s.instances = src->instances;
     std::mt19937_64 rng(HashSeed(seed, static_cast<std::uint64_t>(b)));
     if (aug) AugmentAffine(&s, *augment, &rng);
+    // Realism augmentation on its own stream (the default stream above stays as it was).
+    const bool real = aug && augment->realism.any();
+    std::mt19937_64 real_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0x7ea1ull));
+    if (real) AugmentRealismPoints(&s.points, augment->realism, &real_rng);
+    std::vector<Eigen::Vector3f> aug_colors;
+    if (real && input.use_rgb && augment->realism.any_color())
+      aug_colors = AugmentRealismColors(src->colors, augment->realism, &real_rng);
+    const std::vector<Eigen::Vector3f>& colors = aug_colors.empty() ? src->colors : aug_colors;
 
     std::vector<Eigen::Vector3f> q(s.points.size());
     for (std::size_t i = 0; i < q.size(); ++i) q[i] = s.points[i] * static_cast<float>(input.scale);
@@ -623,6 +748,7 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     std::vector<std::size_t> keep;
     if (aug) {
       keep = CropIndices(q, input.scale, augment->max_points, &rng);
+      if (real) AugmentRealismDropout(&keep, augment->realism, &real_rng);
     } else {
       keep.resize(q.size());
       for (std::size_t i = 0; i < q.size(); ++i) keep[i] = i;
@@ -681,7 +807,7 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
       }
       batch.voxel[4 * o] = b;
       if (input.use_rgb) {
-        for (int c = 0; c < 3; ++c) batch.features[C * o + 3 + c] = src->colors[i][c] - 0.5f;
+        for (int c = 0; c < 3; ++c) batch.features[C * o + 3 + c] = colors[i][c] - 0.5f;
       }
       batch.semantic[o] = src->semantic[i];
       const int k = src->instance[i];

@@ -97,6 +97,7 @@ struct RealEvalArgs {
   bool grey = false;
   double box_margin = 0.0;
   double iou = 0.5;
+  double voxel = 0.0;
 };
 
 void RunRealEval(const RealEvalArgs& a) {
@@ -113,20 +114,41 @@ void RunRealEval(const RealEvalArgs& a) {
 
   pipeline::PointCloudInput in;
   in.name = c.name;
-  in.points.reserve(c.points.size());
-  for (const auto& p : c.points) in.points.push_back(p.cast<float>());
-  if (a.grey) {
-    in.colors.assign(c.points.size(), Eigen::Vector3f::Constant(0.5f));
+  eval::VoxelGroups groups;
+  if (a.voxel > 0) {
+    groups = eval::VoxelMeanGroups(c.points, c.colors, a.voxel);
+    for (const auto& p : groups.points) in.points.push_back(p.cast<float>());
+    for (const auto& col : groups.colors) in.colors.push_back(col.cast<float>());
   } else {
+    for (const auto& p : c.points) in.points.push_back(p.cast<float>());
     for (const auto& col : c.colors) in.colors.push_back(col.cast<float>() / 255.0f);
   }
-  const pipeline::Stage1Result r = seg.Segment(in);
+  if (a.grey) in.colors.assign(in.points.size(), Eigen::Vector3f::Constant(0.5f));
+  pipeline::Stage1Result r = seg.Segment(in);
+  if (a.voxel > 0) {
+    // Back to every scan point: the label of its cell, the instances of their cells' points.
+    std::vector<int> semantic(c.points.size()), cad(c.points.size());
+    std::vector<std::vector<int>> members(groups.points.size());
+    for (std::size_t i = 0; i < c.points.size(); ++i) {
+      semantic[i] = r.semantic[groups.group[i]];
+      cad[i] = r.cad_label[groups.group[i]];
+      members[groups.group[i]].push_back(static_cast<int>(i));
+    }
+    for (auto& inst : r.instances) {
+      std::vector<int> pts;
+      for (int g : inst.points) pts.insert(pts.end(), members[g].begin(), members[g].end());
+      inst.points = std::move(pts);
+    }
+    r.semantic = std::move(semantic);
+    r.cad_label = std::move(cad);
+  }
 
   std::printf("%s: %zu points, model %s (%s), inference from %s: %s%s\n", c.name.c_str(),
               c.points.size(), a.inference.model.c_str(), seg.model_config().c_str(),
               source.c_str(), inf.ToString().c_str(), a.grey ? ", colours set to grey" : "");
-  std::printf("stage 1: %d network passes, %.1f s\n", inf.network_passes(),
-              r.timings.ms("total") / 1000.0);
+  std::printf("stage 1: %d network passes, %.1f s, on %zu points%s\n", inf.network_passes(),
+              r.timings.ms("total") / 1000.0, in.points.size(),
+              a.voxel > 0 ? (" (voxel means, " + Num(a.voxel, 3) + " m)").c_str() : "");
 
   // Semantic: RFS 25 from NYU40; DODA 11 straight from NYU40; CAD 8 from RFS.
   const int n = static_cast<int>(c.points.size());
@@ -153,6 +175,8 @@ void RunRealEval(const RealEvalArgs& a) {
   j["model"] = a.inference.model;
   j["inference"] = inf.ToString();
   j["grey"] = a.grey;
+  j["voxel"] = a.voxel;
+  j["network_points"] = in.points.size();
   j["seconds"] = r.timings.ms("total") / 1000.0;
   j["semantic_rfs25"] = ReportJson(s25);
   j["semantic_doda11"] = ReportJson(s11);
@@ -275,6 +299,10 @@ void SetupRealEval(CLI::App& app) {
   app.add_option("--box-margin", a->box_margin,
                  "grow (or shrink, < 0) the Scan2CAD boxes by this much per side [m]");
   app.add_option("--iou", a->iou, "point IoU for an object to count as found")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--voxel", a->voxel,
+                 "run stage 1 on voxel means of this edge (0 = the scan's points; 0.045 = "
+                 "SynthScan's fused density); labels go back to every scan point [m]")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--json", a->json, "write the numbers as JSON");
   app.add_option("--render-dir", a->render_dir,

@@ -28,9 +28,9 @@
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "tools/command_registry.h"
 #include "tools/config_options.h"
-#include "tools/stage1_inference_args.h"
 #include "tools/render.h"
 #include "tools/sha256.h"
+#include "tools/stage1_inference_args.h"
 #include "tools/stage1_scenes.h"
 
 namespace dimr::tools {
@@ -232,7 +232,8 @@ struct TrainArgs {
   bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
   bool lr_by_time = false;
   std::string class_weights = "none";
-  std::string init;  // start from these weights (fine-tuning), same configuration
+  std::string init;     // start from these weights (fine-tuning), same configuration
+  std::string realism;  // --augment: nn::RealismAugment text form (off by default)
 };
 
 // Opens the per-step CSV for appending from `first_step` on: rows of a previous run at or after
@@ -289,6 +290,9 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
     << (a.no_augment ? "none"
                      : (a.no_elastic ? "affine + crop (no elastic)" : "affine + elastic + crop"))
     << "\n";
+  if (!a.no_augment && !a.realism.empty())
+    y << "  realism_augmentation: \"" << nn::RealismAugment::FromString(a.realism).ToString()
+      << "\"\n";
   y << "  class_weights: " << a.class_weights << "\n";
   if (a.lr_by_time) y << "  lr_schedule: by time (decay reached at --max-minutes)\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
@@ -326,6 +330,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   opt.progress = !a.quiet;
   opt.augment.enabled = !a.no_augment;
   opt.augment.elastic = !a.no_elastic;
+  if (!a.realism.empty()) opt.augment.realism = nn::RealismAugment::FromString(a.realism);
   std::filesystem::create_directories(a.out + "/checkpoint");
   opt.checkpoint_path = a.out + "/checkpoint/stage1.pt";
 
@@ -433,6 +438,11 @@ void SetupTrain(CLI::App& app) {
   app.add_option("--val-every", a->val_every, "epochs between validation passes");
   app.add_flag("--no-augment", a->no_augment, "no augmentation");
   app.add_flag("--no-elastic", a->no_elastic, "no elastic distortion");
+  app.add_option("--augment", a->realism,
+                 "real-scan augmentation, e.g. 'color_jitter=0.1 greyscale=0.2 color_drop=0.1 "
+                 "point_noise=0.004 scale_min=0.9 scale_max=1.1 point_dropout=0.3' (keys: "
+                 "color_jitter, color_contrast, color_noise, greyscale, color_drop, point_noise, "
+                 "scale_min, scale_max, point_dropout; all off by default; docs/stage1.md)");
   app.add_flag("--rgb", a->rgb, "also feed colours");
   app.add_option(
       "--class-weights", a->class_weights,

@@ -126,5 +126,23 @@ TEST(RealEval, PointIouAndObjectMatching) {
   EXPECT_THROW(MatchObjects({g0}, {}, preds), InvalidArgument);
 }
 
+TEST(RealEval, VoxelMeanGroups) {
+  // Two points in cell (0, 0, 0), one in (1, 0, 0), one back in (0, 0, 0); voxel 0.1.
+  const std::vector<Vec3> pts = {Vec3(0.01, 0.02, 0.03), Vec3(0.05, 0.06, 0.07),
+                                 Vec3(0.15, 0.0, 0.0), Vec3(0.09, 0.01, 0.02)};
+  const std::vector<geometry::Color> col = {geometry::Color(0, 0, 0), geometry::Color(255, 0, 0),
+                                            geometry::Color(0, 255, 0),
+                                            geometry::Color(0, 0, 255)};
+  const VoxelGroups g = VoxelMeanGroups(pts, col, 0.1);
+  ASSERT_EQ(g.points.size(), 2u);
+  EXPECT_EQ(g.group, std::vector<int>({0, 0, 1, 0}));
+  EXPECT_NEAR((g.points[0] - Vec3(0.05, 0.03, 0.04)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((g.points[1] - Vec3(0.15, 0, 0)).norm(), 0.0, 1e-12);
+  EXPECT_NEAR((g.colors[0] - Eigen::Vector3d(1.0 / 3, 0, 1.0 / 3)).norm(), 0.0, 1e-12);
+  EXPECT_TRUE(VoxelMeanGroups(pts, {}, 0.1).colors.empty());
+  EXPECT_THROW(VoxelMeanGroups(pts, col, 0.0), InvalidArgument);
+  EXPECT_THROW(VoxelMeanGroups(pts, {geometry::Color(1, 2, 3)}, 0.1), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::eval

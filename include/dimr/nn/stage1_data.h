@@ -75,6 +75,46 @@ struct NetworkFrame {
 NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points);
 
 // ---------------------------------------------------------------- augmentation (section 1.3)
+// Real-scan augmentation (issue 22: SynthScan's surfaces are 10-30x smoother and its colours
+// 3x flatter than ScanNet's, docs/synthscan.md). Every field is off by default, so a model
+// trained without them is reproduced bit for bit (these draws use their own random stream).
+// Text form (`dimr train stage1 --augment`, model cards): "color_jitter=0.1 point_noise=0.004".
+// Per scene, in this order, after the affine part: scale U[scale_min, scale_max] about the
+// network origin; per-point Gaussian displacement (point_noise, m); then, after elastic and
+// crop, a fraction U[0, point_dropout] of the points dropped (at least one point kept).
+// Colours (only fed with rgb): with probability color_drop every colour becomes 0.5 (no colour
+// information); else with probability greyscale the luminance 0.299 r + 0.587 g + 0.114 b
+// replaces each channel; then contrast about the scene's mean colour by a factor U[1,
+// color_contrast], per-channel gain 1 + color_jitter N and offset color_jitter / 2 N (white
+// balance / exposure), per-point noise color_noise N, clamped to [0, 1].
+struct RealismAugment {
+  double color_jitter = 0;
+  double color_contrast = 1;
+  double color_noise = 0;
+  double greyscale = 0;    // probability
+  double color_drop = 0;   // probability
+  double point_noise = 0;  // m
+  double scale_min = 1, scale_max = 1;
+  double point_dropout = 0;  // largest dropped fraction
+  bool any() const;
+  bool any_color() const;
+  void Validate() const;         // throws dimr::InvalidArgument naming the key
+  std::string ToString() const;  // every key ("color_jitter=0 ... point_dropout=0")
+  // Keys on top of the defaults; strict values (config_fields.h). Throws dimr::InvalidArgument.
+  static RealismAugment FromString(const std::string& text);
+};
+
+// Applies the geometric part (scale, point noise) to `points` and returns the colours of the
+// colour part for `colors` (empty in, empty out). Deterministic in `rng`.
+void AugmentRealismPoints(std::vector<Eigen::Vector3f>* points, const RealismAugment& config,
+                          std::mt19937_64* rng);
+std::vector<Eigen::Vector3f> AugmentRealismColors(const std::vector<Eigen::Vector3f>& colors,
+                                                  const RealismAugment& config,
+                                                  std::mt19937_64* rng);
+// Drops a fraction U[0, config.point_dropout] of `keep` (order kept, at least one left).
+void AugmentRealismDropout(std::vector<std::size_t>* keep, const RealismAugment& config,
+                           std::mt19937_64* rng);
+
 struct AugmentConfig {
   bool enabled = true;
   double jitter = 0.1;  // m = I + jitter * N(0,1)^{3x3}
@@ -84,6 +124,7 @@ struct AugmentConfig {
   double elastic_gran0 = 6, elastic_mag0 = 40;    // in voxels of scale 50 (rescaled to scale)
   double elastic_gran1 = 20, elastic_mag1 = 160;  //
   int max_points = 250000;                        // random crop above this many points per scene
+  RealismAugment realism;                         // off by default (above)
   void Validate() const;                          // throws dimr::InvalidArgument naming the field
 };
 
