@@ -14,6 +14,7 @@
 #include "dimr/data/shapenet_io.h"
 #include "dimr/data/synth_random.h"
 #include "dimr/geometry/obj_io.h"
+#include "dimr/geometry/ply_io.h"
 
 namespace dimr::data {
 namespace {
@@ -62,6 +63,7 @@ void WriteRealFurniture(const std::string& dir, const std::vector<ImportedModel>
   std::map<std::string, std::vector<CadModel>> trees;  // "train", "test", "train_solid", ...
   json entries = json::array();
   EnsureDir(root / "distractors");
+  EnsureDir(root / "colors");
   for (const ImportedModel& im : models) {
     const CadModel& m = im.model;
     const std::string split = SplitName(im.held_out);
@@ -77,6 +79,13 @@ void WriteRealFurniture(const std::string& dir, const std::vector<ImportedModel>
       geometry::TriangleMesh mesh = m.mesh;
       mesh.vertex_colors.clear();
       geometry::WriteObj((root / rel).string(), mesh, opt.precision);
+    }
+    if (!m.mesh.vertex_colors.empty()) {
+      // Per-vertex texture / MTL colours (OBJ has none): canonical mesh with colours.
+      geometry::TriangleMesh cm;
+      cm.vertices = m.mesh.vertices;
+      cm.vertex_colors = m.mesh.vertex_colors;
+      geometry::WritePly((root / "colors" / (m.model_id + ".ply")).string(), cm);
     }
     const Sh3dEntry& e = im.entry;
     json j;
@@ -177,6 +186,14 @@ RealFurnitureLibrary LoadRealFurniture(const std::string& dir, const std::string
     throw ParseError(cat_path, std::string("bad model entry: ") + e.what());
   }
   auto paint = [&](CadModel* m) {
+    const fs::path cpath = root / "colors" / (m->model_id + ".ply");
+    if (fs::exists(cpath)) {
+      geometry::TriangleMesh cm = geometry::ReadPlyMesh(cpath.string());
+      if (cm.vertex_colors.size() == m->mesh.vertices.size()) {
+        m->mesh.vertex_colors = std::move(cm.vertex_colors);
+        return;
+      }
+    }
     auto it = colour.find(m->model_id);
     const Vec3 lin = it == colour.end() ? Vec3::Constant(0.5) : it->second;
     geometry::Color c;

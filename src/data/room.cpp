@@ -517,8 +517,7 @@ class Composer {
     o.symmetric = m.symmetric_about_z;
     o.model = std::make_shared<const CadModel>(m);
     o.mesh.vertex_normals.clear();
-    o.mesh.vertex_colors.clear();
-    o.mesh.attributes.clear();
+    o.mesh.attributes.clear();  // vertex colours stay: real furniture has its own (procedural: none)
     o.scale = size;
     o.material = MakeMaterial(&rng_, o.role, o.rfs_class);
     if (!m.mesh.vertex_colors.empty()) {  // real furniture: its own (mean) colour

@@ -441,6 +441,7 @@ TEST(RealFurniture, WriteLoadAndMixIntoRooms) {
     im.model = LoadSh3dModel(zip, im.entry, im.cls);
     im.held_out = IsHeldOutModel(im.model.model_id);
     im.mean_color = Vec3(1, 0, 0);
+    im.model.mesh.vertex_colors[3] = geometry::Color(0, 0, 255);  // a per-vertex pattern
     models.push_back(std::move(im));
   }
   const fs::path dir = testing::FreshTempDir("real_furniture");
@@ -461,7 +462,13 @@ TEST(RealFurniture, WriteLoadAndMixIntoRooms) {
   const CadModel& c0 = lib->cad[kCadChair][0];
   EXPECT_EQ(c0.mesh.Bounds().max, Vec3::Constant(0.5));
   ASSERT_EQ(c0.mesh.vertex_colors.size(), c0.mesh.vertices.size());
-  EXPECT_EQ(c0.mesh.vertex_colors[0][0], 255);  // mean colour red
+  EXPECT_EQ(c0.mesh.vertex_colors[0][0], 255);  // per-vertex colours, same vertex order
+  const auto src = std::find_if(models.begin(), models.end(), [&](const ImportedModel& im) {
+    return im.model.model_id == c0.model_id;
+  });
+  ASSERT_NE(src, models.end());
+  EXPECT_EQ(c0.mesh.vertex_colors, src->model.mesh.vertex_colors);
+  EXPECT_EQ(c0.mesh.vertex_colors[3], geometry::Color(0, 0, 255));
   EXPECT_THROW(LoadRealFurniture((dir / "nope").string(), "train"), ParseError);
   EXPECT_THROW(LoadRealFurniture(dir.string(), "val"), InvalidArgument);
 
@@ -483,8 +490,12 @@ TEST(RealFurniture, WriteLoadAndMixIntoRooms) {
       ++chairs;
       if (o.family == "sh3d_chair") {
         ++real;
-        EXPECT_NEAR(o.material.albedo.x(), 1.0, 1e-9);  // the model's own colour
+        // The model's own colour: 7 red and 1 blue vertex -> albedo (7/8, 0, 1/8); the placed
+        // mesh keeps the vertex colours.
+        EXPECT_NEAR(o.material.albedo.x(), 7.0 / 8, 1e-9);
         EXPECT_NEAR(o.material.albedo.y(), 0.0, 1e-9);
+        EXPECT_NEAR(o.material.albedo.z(), 1.0 / 8, 1e-9);
+        EXPECT_EQ(o.mesh.vertex_colors.size(), o.mesh.vertices.size());
       }
     }
   }

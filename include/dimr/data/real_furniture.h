@@ -7,6 +7,8 @@
 //   test/             the same for the held-out split (IsHeldOutModel): testing only
 //   train_solid/, test_solid/   (with --solid) the same models as closed voxel meshes
 //   distractors/<model_id>.obj  non-CAD models, canonical frame (unit box)
+//   colors/<model_id>.ply       per-vertex colours of every model (canonical mesh, same vertex
+//                               order as its OBJ; texture / MTL colours, sRGB)
 //   catalog.json      one entry per model: id, split, class, rfs_class, distractor kind, rule,
 //                     name, category, catalogue, creator, licence, source, nominal size, mean
 //                     colour, triangles, boundary edges, solid fractions, path
@@ -43,8 +45,9 @@ struct RealFurnitureLibrary {
 };
 
 // Reads one split ("train" or "test") of an import folder: the CAD tree and the distractors of
-// that split. Every model gets uniform vertex colours = its catalogue mean colour (the room
-// composer takes them as the material albedo). Throws dimr::ParseError naming the file for a
+// that split. Every model gets its per-vertex colours from colors/ (else uniform vertex colours =
+// its catalogue mean colour); the room composer takes their mean as the material albedo and
+// keeps them on the placed mesh. Throws dimr::ParseError naming the file for a
 // missing / malformed catalog.json or model.
 RealFurnitureLibrary LoadRealFurniture(const std::string& dir, const std::string& split);
 
