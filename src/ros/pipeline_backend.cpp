@@ -6,6 +6,7 @@
 
 #include "dimr/core/labels.h"
 #include "dimr/geometry/error.h"
+#include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/placement.h"
 #include "dimr/pipeline/shape_pool.h"
 
@@ -110,6 +111,10 @@ BackendResult PipelineBackend::Reconstruct(const BackendCloud& cloud) {
   }
   for (const auto& [name, ms] : r.timings) out.timings_ms[name] = ms;
   return out;
+}
+
+std::string PipelineBackend::compute_info() const {
+  return "sparse kernels " + nn::SparseKernelsInUse();
 }
 
 bool PipelineBackend::SupportsMode(ShapeMode mode, std::string* why) const {

@@ -67,6 +67,7 @@ ReconstructionNode::ReconstructionNode(ros::NodeHandle nh, ros::NodeHandle pnh,
   model_version_ = backend_->model_version();
   has_pool_ = backend_->has_pool();
   pool_id_ = backend_->pool_id();
+  compute_info_ = backend_->compute_info();
   mode_ = static_cast<int>(initial_mode);
   projection_k_ = std::max(1, initial_k);
   mode_text_ = ModeName(mode_);
@@ -466,9 +467,16 @@ void ReconstructionNode::PublishSegmentedCloud() {
 // Services (none of them waits for inference).
 
 bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res) {
-  std::lock_guard<std::mutex> lock(state_mutex_);
+  std::unique_lock<std::mutex> lock(state_mutex_);
   res.previous_mode = static_cast<std::uint8_t>(pending_mode_ >= 0 ? pending_mode_ : mode_);
   res.active_mode = res.previous_mode;
+  res.max_publish_rate = config_.max_publish_rate;
+  if (req.max_publish_rate != 0 && !(req.max_publish_rate >= 0.01 && req.max_publish_rate <= 100)) {
+    res.success = false;
+    res.message = "max_publish_rate " + std::to_string(req.max_publish_rate) +
+                  " Hz is outside [0.01, 100] (0 = keep)";
+    return true;
+  }
   if (req.mode > SetMode::Request::RETRIEVAL) {
     res.success = false;
     res.message =
@@ -488,7 +496,11 @@ bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res
   if (changed) markers_.Reset();  // the next publication starts with DELETEALL
   res.success = true;
   res.active_mode = req.mode;
+  const bool new_rate = req.max_publish_rate != 0;
+  if (new_rate) config_.max_publish_rate = req.max_publish_rate;
+  res.max_publish_rate = config_.max_publish_rate;
   res.message = std::string("mode ") + ModeName(req.mode) + ", k " + std::to_string(k) +
+                ", max_publish_rate " + std::to_string(config_.max_publish_rate) + " Hz" +
                 (req.reprocess_last ? ", reprocessing the last cloud" : "");
   if (req.reprocess_last && last_msg_) {
     Job job;
@@ -499,6 +511,9 @@ bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res
     job.epoch = epoch_;
     queue_.Push(std::move(job));
   }
+  const double period = 1.0 / config_.max_publish_rate;
+  lock.unlock();  // the timer's callback takes state_mutex_
+  if (new_rate) publish_timer_.setPeriod(ros::WallDuration(period));
   return true;
 }
 
@@ -653,6 +668,7 @@ void ReconstructionNode::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("max_callback_ms", max_callback_ms_);
   stat.add("instances", instances_);
   stat.add("rss_mb", RssBytes() / 1048576.0);
+  stat.add("compute", compute_info_);
   if (input_mode_ == InputMode::kScans) {
     stat.add("octomap_scans", map_scans_);
     stat.add("octomap_leaves", map_leaves_);

@@ -24,6 +24,7 @@ class PipelineBackend : public SceneBackend {
   bool SupportsMode(ShapeMode mode, std::string* why) const override;
   std::string model_version() const override { return model_version_; }
   std::string pool_id() const override { return pool_id_; }
+  std::string compute_info() const override;  // "sparse kernels <path>"
   bool PoolModel(const std::string& model_id, geometry::TriangleMesh* mesh,
                  std::string* mesh_resource) const override;
 

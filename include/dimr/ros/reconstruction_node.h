@@ -153,6 +153,7 @@ class ReconstructionNode {
   std::deque<double> arrival_times_;  // wall seconds of the last clouds (input rate)
   std::size_t instances_ = 0, map_scans_ = 0, map_leaves_ = 0, map_bytes_ = 0;
   std::string mode_text_;
+  std::string compute_info_;  // backend's compute path (diagnostics `compute`)
 };
 
 }  // namespace dimr::ros1

@@ -60,6 +60,8 @@ class SceneBackend {
   virtual bool SupportsMode(ShapeMode mode, std::string* why) const = 0;
   virtual std::string model_version() const = 0;  // weights id (SceneMeshes.model_version)
   virtual std::string pool_id() const = 0;        // "" without a pool
+  // Compute path for diagnostics and benchmarks (e.g. the sparse-kernel path); may be "".
+  virtual std::string compute_info() const { return ""; }
   // A pool model's mesh in its canonical frame (get_pool_model); false when unknown.
   virtual bool PoolModel(const std::string& model_id, geometry::TriangleMesh* mesh,
                          std::string* mesh_resource) const = 0;

@@ -329,6 +329,44 @@ TEST_F(NodeTest, SetModeWithPoolSwitchesSourcesWithDeleteAll) {
   EXPECT_FALSE(Call("get_pool_model", p).response.found);
 }
 
+TEST_F(NodeTest, PublishRateCapSettableAtRunTime) {
+  Start("rate", false);  // Start() sets a 50 Hz cap
+  Publish(Boxes("sensor", ros::Time::now()));
+  SetMode s;
+  s.request.mode = SetMode::Request::GENERATION;
+  s.request.max_publish_rate = 500;  // out of range: refused, cap unchanged
+  s = Call("set_mode", s);
+  EXPECT_FALSE(s.response.success);
+  EXPECT_NE(s.response.message.find("max_publish_rate"), std::string::npos) << s.response.message;
+  EXPECT_DOUBLE_EQ(s.response.max_publish_rate, 50.0);
+  s.request.max_publish_rate = 0.4;
+  s = Call("set_mode", s);
+  EXPECT_TRUE(s.response.success) << s.response.message;
+  EXPECT_DOUBLE_EQ(s.response.max_publish_rate, 0.4);
+  // Three clouds 0.1 s apart: at 50 Hz each gives a scene at once; capped at 0.4 Hz at most one
+  // can be published within the next second, the newest one follows within the 2.5 s period.
+  const std::size_t n = NumScenes();
+  ros::Time last;
+  for (int i = 0; i < 3; ++i) {
+    last = ros::Time::now();
+    cloud_pub_.publish(Boxes("sensor", last));
+    ros::WallDuration(0.1).sleep();
+  }
+  ros::WallDuration(0.7).sleep();
+  EXPECT_LE(NumScenes(), n + 1) << "the 0.4 Hz cap was not applied";
+  {
+    std::unique_lock<std::mutex> l(mu_);
+    cv_.wait_for(l, std::chrono::seconds(6),
+                 [&] { return !scenes_.empty() && scenes_.back().header.stamp == last; });
+    ASSERT_FALSE(scenes_.empty());
+    EXPECT_EQ(scenes_.back().header.stamp, last) << "the pending scene was never published";
+  }
+  s.request.max_publish_rate = 0;  // keep
+  s = Call("set_mode", s);
+  EXPECT_TRUE(s.response.success);
+  EXPECT_DOUBLE_EQ(s.response.max_publish_rate, 0.4);
+}
+
 TEST_F(NodeTest, ResetClearsWithDeleteAllAndEmptyScene) {
   Start("reset", false);
   const SceneMeshes a = Publish(Boxes("sensor", ros::Time::now()));
