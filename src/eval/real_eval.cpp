@@ -169,42 +169,4 @@ std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_po
   return out;
 }
 
-VoxelGroups VoxelMeanGroups(const std::vector<geometry::Vec3>& points,
-                            const std::vector<geometry::Color>& colors, double voxel) {
-  if (!(voxel > 0.0) || !std::isfinite(voxel))
-    throw InvalidArgument("VoxelMeanGroups: voxel must be > 0, got " + std::to_string(voxel));
-  const bool col = !colors.empty();
-  if (col && colors.size() != points.size())
-    throw InvalidArgument("VoxelMeanGroups: " + std::to_string(colors.size()) + " colours for " +
-                          std::to_string(points.size()) + " points");
-  VoxelGroups g;
-  g.group.resize(points.size());
-  std::map<std::array<long long, 3>, int> cell_of;
-  std::vector<int> count;
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!points[i].allFinite())
-      throw InvalidArgument("VoxelMeanGroups: point " + std::to_string(i) + " is not finite");
-    const std::array<long long, 3> key = {
-        static_cast<long long>(std::floor(points[i].x() / voxel)),
-        static_cast<long long>(std::floor(points[i].y() / voxel)),
-        static_cast<long long>(std::floor(points[i].z() / voxel))};
-    auto [it, added] = cell_of.emplace(key, static_cast<int>(g.points.size()));
-    if (added) {
-      g.points.push_back(geometry::Vec3::Zero());
-      if (col) g.colors.push_back(Eigen::Vector3d::Zero());
-      count.push_back(0);
-    }
-    const int k = it->second;
-    g.group[i] = k;
-    g.points[k] += points[i];
-    if (col) g.colors[k] += colors[i].cast<double>() / 255.0;
-    ++count[k];
-  }
-  for (std::size_t k = 0; k < g.points.size(); ++k) {
-    g.points[k] /= count[k];
-    if (col) g.colors[k] /= count[k];
-  }
-  return g;
-}
-
 }  // namespace dimr::eval

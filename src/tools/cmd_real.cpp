@@ -25,6 +25,7 @@
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/point_cloud_input.h"
 #include "dimr/pipeline/stage1_segmenter.h"
+#include "dimr/pipeline/voxel_downsample.h"
 #include "tools/bsp_options.h"
 #include "tools/command_registry.h"
 #include "tools/render.h"
@@ -112,35 +113,21 @@ void RunRealEval(const RealEvalArgs& a) {
   const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
   const pipeline::Stage1Segmenter seg = pipeline::Stage1Segmenter::Load(a.inference.model, inf);
 
-  pipeline::PointCloudInput in;
-  in.name = c.name;
-  eval::VoxelGroups groups;
-  if (a.voxel > 0) {
-    groups = eval::VoxelMeanGroups(c.points, c.colors, a.voxel);
-    for (const auto& p : groups.points) in.points.push_back(p.cast<float>());
-    for (const auto& col : groups.colors) in.colors.push_back(col.cast<float>());
-  } else {
-    for (const auto& p : c.points) in.points.push_back(p.cast<float>());
-    for (const auto& col : c.colors) in.colors.push_back(col.cast<float>() / 255.0f);
-  }
-  if (a.grey) in.colors.assign(in.points.size(), Eigen::Vector3f::Constant(0.5f));
+  pipeline::PointCloudInput scan;
+  scan.name = c.name;
+  for (const auto& p : c.points) scan.points.push_back(p.cast<float>());
+  for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
+  if (a.grey) scan.colors.assign(scan.points.size(), Eigen::Vector3f::Constant(0.5f));
+  pipeline::VoxelDownsample reduced;
+  if (a.voxel > 0) reduced = pipeline::VoxelMeanDownsample(scan, a.voxel);
+  const pipeline::PointCloudInput& in = a.voxel > 0 ? reduced.cloud : scan;
   pipeline::Stage1Result r = seg.Segment(in);
   if (a.voxel > 0) {
     // Back to every scan point: the label of its cell, the instances of their cells' points.
-    std::vector<int> semantic(c.points.size()), cad(c.points.size());
-    std::vector<std::vector<int>> members(groups.points.size());
-    for (std::size_t i = 0; i < c.points.size(); ++i) {
-      semantic[i] = r.semantic[groups.group[i]];
-      cad[i] = r.cad_label[groups.group[i]];
-      members[groups.group[i]].push_back(static_cast<int>(i));
-    }
-    for (auto& inst : r.instances) {
-      std::vector<int> pts;
-      for (int g : inst.points) pts.insert(pts.end(), members[g].begin(), members[g].end());
-      inst.points = std::move(pts);
-    }
-    r.semantic = std::move(semantic);
-    r.cad_label = std::move(cad);
+    r.semantic = pipeline::ExpandCellLabels(r.semantic, reduced.cell_of_point);
+    r.cad_label = pipeline::ExpandCellLabels(r.cad_label, reduced.cell_of_point);
+    for (auto& inst : r.instances)
+      inst.points = pipeline::ExpandCellPoints(inst.points, reduced.cell_of_point);
   }
 
   std::printf("%s: %zu points, model %s (%s), inference from %s: %s%s\n", c.name.c_str(),

@@ -83,13 +83,13 @@ TEST(RealEval, PointsInsideAnAlignedBox) {
   // Box centre in the scan: (11, 1, 0) + Rz(90)(0, 0.2, 0) - (10, 0, 0) = (0.8, 1, 0); its
   // half extents in the scan: along y 1.0 (CAD x), along x 0.5 (CAD y), along z 1.0.
   const std::vector<Vec3> pts = {
-      Vec3(0.8, 1, 0),           // centre: in
-      Vec3(0.8 + 0.49, 1, 0),    // inside along scan x (half 0.5)
-      Vec3(0.8 + 0.51, 1, 0),    // outside
-      Vec3(0.8, 1 + 0.99, 0),    // inside along scan y (half 1.0)
-      Vec3(0.8, 1 + 1.01, 0),    // outside
-      Vec3(0.8, 1, -0.99),       // inside along z
-      Vec3(10.8, 1, 0),          // the world-frame centre: outside in the scan frame
+      Vec3(0.8, 1, 0),         // centre: in
+      Vec3(0.8 + 0.49, 1, 0),  // inside along scan x (half 0.5)
+      Vec3(0.8 + 0.51, 1, 0),  // outside
+      Vec3(0.8, 1 + 0.99, 0),  // inside along scan y (half 1.0)
+      Vec3(0.8, 1 + 1.01, 0),  // outside
+      Vec3(0.8, 1, -0.99),     // inside along z
+      Vec3(10.8, 1, 0),        // the world-frame centre: outside in the scan frame
   };
   EXPECT_EQ(PointsInScan2CadBox(pts, m, to_scan), std::vector<int>({0, 1, 3, 5}));
   // A 2 cm margin takes in the points 1 cm outside.
@@ -109,10 +109,9 @@ TEST(RealEval, PointIouAndObjectMatching) {
   for (int i = 0; i < 6; ++i) p_chair.push_back(i);
   for (int i = 0; i < 9; ++i) p_table.push_back(i);
   for (int i = 0; i < 4; ++i) p_table2.push_back(20 + i);
-  const std::vector<PredictedInstance> preds = {
-      {labels::kCadChair, 0.9, p_chair},
-      {labels::kCadTable, 0.8, p_table},
-      {labels::kCadTable, 0.7, p_table2}};
+  const std::vector<PredictedInstance> preds = {{labels::kCadChair, 0.9, p_chair},
+                                                {labels::kCadTable, 0.8, p_table},
+                                                {labels::kCadTable, 0.7, p_table2}};
   const auto m = MatchObjects({g0, g1}, {labels::kCadChair, labels::kCadTable}, preds);
   ASSERT_EQ(m.size(), 2u);
   EXPECT_TRUE(m[0].found);
@@ -124,24 +123,6 @@ TEST(RealEval, PointIouAndObjectMatching) {
   EXPECT_DOUBLE_EQ(m[1].best_iou, 0.4);
   EXPECT_EQ(m[1].gt_points, 10);
   EXPECT_THROW(MatchObjects({g0}, {}, preds), InvalidArgument);
-}
-
-TEST(RealEval, VoxelMeanGroups) {
-  // Two points in cell (0, 0, 0), one in (1, 0, 0), one back in (0, 0, 0); voxel 0.1.
-  const std::vector<Vec3> pts = {Vec3(0.01, 0.02, 0.03), Vec3(0.05, 0.06, 0.07),
-                                 Vec3(0.15, 0.0, 0.0), Vec3(0.09, 0.01, 0.02)};
-  const std::vector<geometry::Color> col = {geometry::Color(0, 0, 0), geometry::Color(255, 0, 0),
-                                            geometry::Color(0, 255, 0),
-                                            geometry::Color(0, 0, 255)};
-  const VoxelGroups g = VoxelMeanGroups(pts, col, 0.1);
-  ASSERT_EQ(g.points.size(), 2u);
-  EXPECT_EQ(g.group, std::vector<int>({0, 0, 1, 0}));
-  EXPECT_NEAR((g.points[0] - Vec3(0.05, 0.03, 0.04)).norm(), 0.0, 1e-12);
-  EXPECT_NEAR((g.points[1] - Vec3(0.15, 0, 0)).norm(), 0.0, 1e-12);
-  EXPECT_NEAR((g.colors[0] - Eigen::Vector3d(1.0 / 3, 0, 1.0 / 3)).norm(), 0.0, 1e-12);
-  EXPECT_TRUE(VoxelMeanGroups(pts, {}, 0.1).colors.empty());
-  EXPECT_THROW(VoxelMeanGroups(pts, col, 0.0), InvalidArgument);
-  EXPECT_THROW(VoxelMeanGroups(pts, {geometry::Color(1, 2, 3)}, 0.1), InvalidArgument);
 }
 
 }  // namespace

@@ -94,18 +94,4 @@ std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_po
                                       const std::vector<PredictedInstance>& preds,
                                       double threshold = 0.5);
 
-// Voxel-mean down-sampling of a scan to the density stage 1 was trained on (SynthScan's fused
-// mesh: one point per 4.5 cm voxel of surface; real ScanNet vertices are ~1.3 cm apart). Cells
-// of edge `voxel` anchored at the origin; each occupied cell becomes the mean of its points
-// (and of their colours, in [0, 1]), in order of first appearance; `group` maps every input
-// point to its cell. Throws dimr::InvalidArgument for voxel <= 0, a non-finite point or colours
-// of the wrong count.
-struct VoxelGroups {
-  std::vector<geometry::Vec3> points;
-  std::vector<Eigen::Vector3d> colors;  // empty when the input has none
-  std::vector<int> group;               // per input point
-};
-VoxelGroups VoxelMeanGroups(const std::vector<geometry::Vec3>& points,
-                            const std::vector<geometry::Color>& colors, double voxel);
-
 }  // namespace dimr::eval
