@@ -165,6 +165,12 @@ std::vector<std::uint8_t> ZipArchive::Read(const std::string& name) const {
                                 " bytes) runs past the end of the file");
   if (e->uncompressed > (std::uint64_t{1} << 31))
     throw ParseError(where, "entry too large (" + std::to_string(e->uncompressed) + " bytes)");
+  // Deflate cannot expand by more than ~1032:1: a larger claim is a corrupt directory (and would
+  // make us allocate gigabytes for nothing).
+  if (e->method == 8 && e->uncompressed > e->compressed * 1032 + 1024)
+    throw ParseError(where, "uncompressed size " + std::to_string(e->uncompressed) +
+                                " impossible for " + std::to_string(e->compressed) +
+                                " deflated bytes");
   std::vector<std::uint8_t> out(static_cast<std::size_t>(e->uncompressed));
   if (e->method == 0) {
     if (e->compressed != e->uncompressed)

@@ -280,6 +280,14 @@ TEST(ZipArchive, StoredEntriesAndCorruption) {
     EXPECT_NE(std::string(e.what()).find("g.sh3f:m.obj"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("deflate"), std::string::npos) << e.what();
   }
+  // A size claim deflate cannot reach is refused before allocating.
+  const auto bomb = MakeZip({{"m.obj", std::string("\x03\x00", 2), 8, 1u << 30, 0}});
+  try {
+    ZipArchive::FromBytes(bomb, "b.sh3f").Read("m.obj");
+    FAIL();
+  } catch (const ParseError& e) {
+    EXPECT_NE(std::string(e.what()).find("impossible"), std::string::npos) << e.what();
+  }
   // Truncated / not a zip / directory out of range.
   EXPECT_THROW(ZipArchive::FromBytes({1, 2, 3}, "t.zip"), ParseError);
   std::vector<std::uint8_t> cut(bytes.begin(), bytes.begin() + bytes.size() / 2);
