@@ -124,11 +124,6 @@ class Stage1NetImpl : public torch::nn::Module {
     angle_linear = register_module("angle_linear", torch::nn::Linear(c0, 2 * kHeadingBins));
   }
 
-  // Voxel features -> point features.
-  torch::Tensor Backbone(const SparseTensor& x, const VoxelMap& map) {
-    SparseTensor y = backbone->forward(x);
-    return Devoxelize(y.features(), map);
-  }
   HeadOutput Heads(const torch::Tensor& f) {
     HeadOutput h;
     h.features = f;
@@ -309,58 +304,32 @@ struct Stage1Model::Impl {
   torch::Device device = torch::kCPU;
   explicit Impl(const Stage1Config& c) : config(c), net(c) {}
 
-  HeadOutput Forward(const BatchTensors& t, Stage1Timing* timing) {
+  // The U-Net on voxelised points; `voxel_heads` runs the heads on its voxel rows (inference)
+  // instead of the gathered point rows (training: BatchNorm statistics are per point).
+  struct Pass {
+    HeadOutput h;                  // [N, ...] point rows, or [M, ...] voxel rows
+    torch::Tensor point_to_voxel;  // [N] int64, CPU (voxel heads only)
+  };
+  Pass Run(const torch::Tensor& voxel, const torch::Tensor& features, int64_t batch_size,
+           bool voxel_heads, Stage1Timing* timing) {
     const auto t0 = std::chrono::steady_clock::now();
     // Every U-Net level halves the grid (k2 s2): at least 2^(levels - 1) voxels per axis, or a
     // flat room (1.37 m high at 5 cm: 28 voxels for 6 levels), a plane or one point could not
     // be down-sampled to the last level. Padding adds no sites, so wider grids are unchanged.
     const int64_t min_extent = int64_t{1} << (config.widths.size() - 1);
-    Voxelized v = Voxelize(t.voxel, t.features, t.batch_size, {min_extent, min_extent, min_extent});
+    Voxelized v = Voxelize(voxel, features, batch_size, {min_extent, min_extent, min_extent});
     const auto t1 = std::chrono::steady_clock::now();
     v.tensor.context()->BuildKernelMaps(static_cast<int>(config.widths.size()));
     const auto t1b = std::chrono::steady_clock::now();
-    torch::Tensor f = net->Backbone(v.tensor, v.map);
+    const SparseTensor y = net->backbone->forward(v.tensor);
     const auto t2 = std::chrono::steady_clock::now();
-    HeadOutput h = net->Heads(f);
-    if (timing) {
-      const auto t3 = std::chrono::steady_clock::now();
-      timing->voxelize_ms = Ms(t0, t1);
-      timing->kernel_map_ms = Ms(t1, t1b);
-      timing->unet_ms = Ms(t1b, t2);
-      timing->heads_ms = Ms(t2, t3);
+    Pass pass;
+    if (voxel_heads) {
+      pass.h = net->HeadsFolded(y.features());
+      pass.point_to_voxel = v.map.point_to_voxel.to(torch::kCPU).to(torch::kInt64).contiguous();
+    } else {
+      pass.h = net->Heads(Devoxelize(y.features(), v.map));
     }
-    return h;
-  }
-
-  // One network pass on a scene view (eval mode, no gradient: the caller's guard), with the
-  // heads run on the voxels instead of the points. Devoxelize is a gather and every head is a
-  // row-wise function of its input (eval-mode BatchNorm uses the running statistics), so a
-  // point's outputs are its voxel's row: the same numbers as heads on the gathered point
-  // features, for ~3-5x fewer rows at 5 cm (a 100k-point room has ~25k voxels). `h` holds
-  // [M, ...] voxel rows, `point_to_voxel` [N] the row of each point.
-  struct VoxelPass {
-    HeadOutput h;
-    torch::Tensor point_to_voxel;  // [N] int64, CPU
-  };
-  VoxelPass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing,
-                               NetworkFrame* frame) {
-    const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
-    *frame = in.frame;
-    const int64_t n = static_cast<int64_t>(scene.size);
-    const torch::Tensor voxel = FromVector(in.voxel, torch::kInt32, {n, 4});
-    const torch::Tensor features =
-        FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device);
-    const auto t0 = std::chrono::steady_clock::now();
-    const int64_t min_extent = int64_t{1} << (config.widths.size() - 1);
-    Voxelized v = Voxelize(voxel, features, 1, {min_extent, min_extent, min_extent});
-    const auto t1 = std::chrono::steady_clock::now();
-    v.tensor.context()->BuildKernelMaps(static_cast<int>(config.widths.size()));
-    const auto t1b = std::chrono::steady_clock::now();
-    SparseTensor y = net->backbone->forward(v.tensor);
-    const auto t2 = std::chrono::steady_clock::now();
-    VoxelPass pass;
-    pass.h = net->HeadsFolded(y.features());
-    pass.point_to_voxel = v.map.point_to_voxel.to(torch::kCPU).to(torch::kInt64).contiguous();
     if (timing) {
       const auto t3 = std::chrono::steady_clock::now();
       timing->voxelize_ms = Ms(t0, t1);
@@ -369,6 +338,24 @@ struct Stage1Model::Impl {
       timing->heads_ms = Ms(t2, t3);
     }
     return pass;
+  }
+
+  HeadOutput Forward(const BatchTensors& t, Stage1Timing* timing) {
+    return Run(t.voxel, t.features, t.batch_size, /*voxel_heads=*/false, timing).h;
+  }
+
+  // One network pass on a scene view (eval mode, no gradient: the caller's guard), with the
+  // heads run on the voxels instead of the points. Devoxelize is a gather and every head is a
+  // row-wise function of its input (eval-mode BatchNorm uses the running statistics), so a
+  // point's outputs are its voxel's row: the same numbers as heads on the gathered point
+  // features, for ~3-5x fewer rows at 5 cm (a 100k-point room has ~25k voxels).
+  Pass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
+    const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
+    *frame = in.frame;
+    const int64_t n = static_cast<int64_t>(scene.size);
+    return Run(FromVector(in.voxel, torch::kInt32, {n, 4}),
+               FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device), 1,
+               /*voxel_heads=*/true, timing);
   }
 };
 
@@ -529,7 +516,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
   // Adds one pass. A heading h of the input is sign * h (+ pi if mirrored) + theta in the
   // pass's scene: bin b here is bin (m * 6 + sign * b + shift) there, residual times sign;
   // offsets are rotated back by -theta, then mirrored.
-  auto add_pass = [&](const Impl::VoxelPass& pass, int m, int k, bool first) {
+  auto add_pass = [&](const Impl::Pass& pass, int m, int k, bool first) {
     const PassTensors p = ToPassTensors(pass.h);
     const int64_t mv = p.prob.size(0);
     const float* rp = p.prob.data_ptr<float>();
@@ -580,7 +567,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
   };
   acc.resize(n * row);
   {
-    const Impl::VoxelPass pass = impl_->ForwardSceneVoxels(scene, &local, &out.frame);
+    const Impl::Pass pass = impl_->ForwardSceneVoxels(scene, &local, &out.frame);
     const auto t0 = std::chrono::steady_clock::now();
     add_pass(pass, 0, 0, /*first=*/true);
     if (with_features) {
@@ -619,7 +606,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
         }
         Stage1Timing t;
         NetworkFrame unused;
-        const Impl::VoxelPass pass = impl_->ForwardSceneVoxels(view, &t, &unused);
+        const Impl::Pass pass = impl_->ForwardSceneVoxels(view, &t, &unused);
         const auto t0 = std::chrono::steady_clock::now();
         add_pass(pass, m, k, /*first=*/false);
         ++passes;
