@@ -15,7 +15,7 @@ PACKAGES=(
   libpcl-conversions-dev libpcl-dev liboctomap-dev
   libdiagnostic-updater-dev libpcl-ros-dev   # node diagnostics; pcl_ros filter nodelets (launch option)
   # core libraries
-  libeigen3-dev libembree-dev nlohmann-json3-dev libyaml-cpp-dev libcli11-dev zlib1g-dev
+  libeigen3-dev libembree-dev libopen3d-dev nlohmann-json3-dev libyaml-cpp-dev libcli11-dev zlib1g-dev
   # real furniture (SynthScan v2): Sweet Home 3D catalogues, texture decoders
   sweethome3d-furniture libpng-dev libjpeg-dev
   # LibTorch (CPU) + a fast BLAS for it (see docs/ros-build.md, BLAS section)

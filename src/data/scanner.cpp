@@ -3,11 +3,16 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <memory>
 #include <mutex>
 
 #include "dimr/core/parallel.h"
+#include "dimr/data/labels.h"
 #include "dimr/data/synth_random.h"
+#include "dimr/data/tsdf_fusion.h"
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/kdtree.h"
 
 #ifdef DIMR_HAVE_EMBREE
 #include <embree3/rtcore.h>
@@ -65,6 +70,114 @@ Color Shade(const PlacedObject& obj, std::uint64_t salt, const Vec3& p, const Ve
   return c;
 }
 
+// Per-scene look of SynthScan v2 (colour realism): per-object albedo and gloss, white balance
+// and exposure, one point light.
+struct SceneLook {
+  std::vector<Vec3> albedo;
+  std::vector<double> gloss;
+  Vec3 gain = Vec3::Ones();
+  Vec3 light = Vec3::Zero();
+  double ambient = 0.35;
+};
+
+Vec3 Pick(const std::vector<Vec3>& palette, Rng* rng) {
+  return palette[static_cast<std::size_t>(
+      rng->UniformInt(0, static_cast<int>(palette.size()) - 1))];
+}
+
+SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t seed) {
+  // Linear-RGB palettes of real interiors (paints, woods, tiles, carpets, upholstery).
+  static const std::vector<Vec3> kWalls = {
+      {0.80, 0.80, 0.78}, {0.78, 0.72, 0.62}, {0.55, 0.56, 0.58}, {0.62, 0.50, 0.36},
+      {0.45, 0.55, 0.68}, {0.50, 0.60, 0.45}, {0.75, 0.62, 0.30}, {0.35, 0.30, 0.27},
+      {0.85, 0.84, 0.82}, {0.70, 0.66, 0.60}};
+  static const std::vector<Vec3> kFloors = {
+      {0.55, 0.36, 0.18}, {0.18, 0.10, 0.05}, {0.42, 0.26, 0.12}, {0.22, 0.22, 0.24},
+      {0.08, 0.12, 0.25}, {0.65, 0.60, 0.50}, {0.75, 0.75, 0.73}, {0.10, 0.10, 0.10},
+      {0.30, 0.06, 0.05}, {0.35, 0.30, 0.22}};
+  static const std::vector<Vec3> kDoors = {
+      {0.78, 0.78, 0.76}, {0.45, 0.28, 0.14}, {0.15, 0.09, 0.05}, {0.40, 0.40, 0.42}};
+  static const std::vector<Vec3> kFurniture = {
+      {0.03, 0.03, 0.03}, {0.80, 0.80, 0.80}, {0.50, 0.05, 0.04}, {0.04, 0.06, 0.25},
+      {0.10, 0.30, 0.08}, {0.60, 0.40, 0.05}, {0.25, 0.10, 0.04}, {0.25, 0.25, 0.27}};
+  Rng rng(HashCombine(seed, 0x1007c0ULL));
+  SceneLook look;
+  look.ambient = cfg.ambient;
+  const double v = cfg.material_variety;
+  const Vec3 paint = Pick(kWalls, &rng), accent = Pick(kWalls, &rng);
+  const Vec3 floor = Pick(kFloors, &rng), door = Pick(kDoors, &rng);
+  for (const auto& o : room.objects) {
+    Vec3 target = o.material.albedo;
+    double gloss = 0;
+    switch (o.role) {
+      case ObjectRole::kWall:
+        target = (rng.Bernoulli(0.25) ? accent : paint) * std::exp(rng.Normal(0, 0.05));
+        break;
+      case ObjectRole::kFloor:
+        target = floor;
+        gloss = 0.2;
+        break;
+      case ObjectRole::kDoor:
+      case ObjectRole::kWindow:
+        target = door * std::exp(rng.Normal(0, 0.05));
+        break;
+      default: {
+        if (rng.Bernoulli(0.3)) {
+          target = Pick(kFurniture, &rng);
+        } else {
+          const double b = std::exp(rng.Normal(0, 0.6));
+          for (int k = 0; k < 3; ++k) target[k] *= b * std::exp(rng.Normal(0, 0.15));
+        }
+        if (o.cad_class == kCadDisplay) {
+          gloss = 1.0;
+        } else if (rng.Bernoulli(0.25)) {
+          gloss = 0.6;
+        }
+      }
+    }
+    target = target.cwiseMax(0.01).cwiseMin(0.92);
+    look.albedo.push_back((1 - v) * o.material.albedo + v * target);
+    look.gloss.push_back(v > 0 ? gloss : (o.cad_class == kCadDisplay ? 1.0 : 0.0));
+  }
+  // Point light under the ceiling near the room centre.
+  Vec3 lo = Vec3::Constant(1e9), hi = Vec3::Constant(-1e9);
+  for (const auto& p : room.outline) {
+    lo.head<2>() = lo.head<2>().cwiseMin(p);
+    hi.head<2>() = hi.head<2>().cwiseMax(p);
+  }
+  look.light = Vec3(rng.Uniform(0.3, 0.7) * (hi.x() - lo.x()) + lo.x(),
+                    rng.Uniform(0.3, 0.7) * (hi.y() - lo.y()) + lo.y(), room.height - 0.2);
+  const double exposure = std::exp(rng.Normal(0, cfg.exposure_jitter));
+  for (int k = 0; k < 3; ++k)
+    look.gain[k] = exposure * std::exp(rng.Normal(0, cfg.white_balance_jitter));
+  return look;
+}
+
+double Texture(const Material& m, std::uint64_t salt, const Vec3& p) {
+  return 1.0 + m.texture_amplitude * (ValueNoise(p / m.texture_scale, salt) +
+                                      0.5 * ValueNoise(p / (0.25 * m.texture_scale), salt + 1));
+}
+
+double Luminance(const Vec3& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
+
+// v2 shading: albedo x texture x (ambient + Lambert from the point light with distance
+// fall-off), white balance and exposure, gamma, sensor noise. `n` faces the camera.
+Color ShadeV2(const Vec3& albedo, double tex, const SceneLook& look, double frame_gain,
+              const Vec3& p, const Vec3& n, Rng* rng) {
+  Vec3 l = look.light - p;
+  const double d = std::max(l.norm(), 1e-6);
+  l /= d;
+  const double falloff = std::min(1.0, (2.0 / d) * (2.0 / d));
+  const double irradiance = look.ambient + (1 - look.ambient) * std::max(0.0, n.dot(l)) * falloff;
+  Color c;
+  for (int k = 0; k < 3; ++k) {
+    double v = 1.3 * albedo[k] * tex * irradiance * look.gain[k] * frame_gain;
+    v = std::pow(std::clamp(v, 0.0, 1.0), 1.0 / 2.2) * 255.0 + rng->Normal(0.0, 2.0);
+    c[k] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
+  }
+  return c;
+}
+
 // Inward offset of an orthogonal, counter-clockwise polygon.
 std::vector<Vec2> InsetPolygon(const std::vector<Vec2>& poly, double d) {
   const std::size_t n = poly.size();
@@ -87,6 +200,7 @@ struct Return {
   Color color;
   float weight;  // 1 / sigma^2 of the depth measurement
   int object;
+  int u;               // pixel column
   bool keep_frame;     // on the frame (rosbag) pixel grid
   bool keep_raw;       // on the raw-density pixel grid
   std::uint64_t cell;  // (object, 1 cm cell) of the true surface point
@@ -303,12 +417,65 @@ bool ObservedNear(const ScanResult& scan, int object, const geometry::Vec3& p) {
   return false;
 }
 
-const char* ScanDensityName(ScanDensity d) { return d == ScanDensity::kMesh ? "mesh" : "raw"; }
+const char* ScanDensityName(ScanDensity d) {
+  switch (d) {
+    case ScanDensity::kMesh:
+      return "mesh";
+    case ScanDensity::kRaw:
+      return "raw";
+    case ScanDensity::kScanNet:
+      return "scannet";
+  }
+  return "?";
+}
 
 ScanDensity ScanDensityFromName(const std::string& name) {
   if (name == "mesh") return ScanDensity::kMesh;
   if (name == "raw") return ScanDensity::kRaw;
-  throw InvalidArgument("density: expected 'mesh' or 'raw', got '" + name + "'");
+  if (name == "scannet") return ScanDensity::kScanNet;
+  throw InvalidArgument("density: expected 'mesh', 'raw' or 'scannet', got '" + name + "'");
+}
+
+double AxialSigma(const ScannerConfig& c, double z) {
+  return c.axial_noise_base + c.axial_noise_quad * (z - c.axial_noise_z0) * (z - c.axial_noise_z0);
+}
+
+double MeasuredDepth(const ScannerConfig& c, double z, double standard_normal) {
+  const double sigma = AxialSigma(c, z);
+  double zm = z + sigma * std::clamp(standard_normal, -c.noise_clip, c.noise_clip);
+  if (c.disparity_quantum > 0 && zm > 0) {
+    const double q = c.disparity_quantum;
+    const double inv = std::max(1.0, std::round(1.0 / (zm * q)));
+    zm = 1.0 / (inv * q);
+  }
+  return zm;
+}
+
+void ScannerConfig::EnableRealism() {
+  // Structured-light sensor (Kinect v1 / Structure-like): sigma(z) = 0.0005 + 0.0025 z^2
+  // (1.0 cm at 2 m, 2.3 cm at 3 m), 1/8-pixel disparity steps, flying pixels, dark / glossy
+  // dropout.
+  axial_noise_base = 0.0005;
+  axial_noise_quad = 0.0025;
+  axial_noise_z0 = 0.0;
+  lateral_noise_px = 0.6;
+  disparity_quantum = 0.0029;
+  flying_pixel_probability = 0.5;
+  dark_dropout = 0.6;
+  glossy_dropout = 0.5;
+  dropout = 0.03;
+  // Hand-held SLAM scan.
+  drift_translation = std::max(drift_translation, 0.0015);
+  drift_rotation_deg = std::max(drift_rotation_deg, 0.05);
+  loop_closure = true;
+  min_coverage = 0.6;
+  height_cap_probability = 0.15;
+  // Colour.
+  white_balance_jitter = 0.08;
+  exposure_jitter = 0.25;
+  frame_exposure_jitter = 0.08;
+  lambert_shading = true;
+  material_variety = 1.0;
 }
 
 void ScannerConfig::Validate() const {
@@ -332,6 +499,25 @@ void ScannerConfig::Validate() const {
   if (!(grazing_start_deg > 0 && grazing_end_deg > grazing_start_deg && grazing_end_deg <= 90))
     fail("need 0 < grazing_start_deg < grazing_end_deg <= 90");
   if (!(drift_translation >= 0 && drift_rotation_deg >= 0)) fail("drift must be >= 0");
+  if (!(axial_noise_z0 >= 0 && axial_noise_z0 <= max_range))
+    fail("axial_noise_z0 must be in [0, max_range]");
+  if (!(disparity_quantum >= 0 && disparity_quantum <= 0.1))
+    fail("disparity_quantum must be in [0, 0.1] 1/m");
+  if (!(flying_pixel_probability >= 0 && flying_pixel_probability <= 1 && flying_pixel_edge > 0))
+    fail("need flying_pixel_probability in [0, 1] and flying_pixel_edge > 0");
+  if (!(dark_dropout >= 0 && dark_dropout <= 1 && dark_luminance > 0 && glossy_dropout >= 0 &&
+        glossy_dropout <= 1))
+    fail("need dark_dropout, glossy_dropout in [0, 1] and dark_luminance > 0");
+  if (!(min_coverage >= 0.1 && min_coverage <= 1)) fail("min_coverage must be in [0.1, 1]");
+  if (!(height_cap_probability >= 0 && height_cap_probability <= 1 && height_cap_min > 0.2 &&
+        height_cap_max >= height_cap_min))
+    fail("need height_cap_probability in [0, 1] and 0.2 < height_cap_min <= height_cap_max");
+  if (!(white_balance_jitter >= 0 && white_balance_jitter <= 1 && exposure_jitter >= 0 &&
+        exposure_jitter <= 1 && frame_exposure_jitter >= 0 && frame_exposure_jitter <= 1))
+    fail("colour jitters must be in [0, 1]");
+  if (!(ambient >= 0 && ambient <= 1)) fail("ambient must be in [0, 1]");
+  if (!(material_variety >= 0 && material_variety <= 1)) fail("material_variety must be in [0, 1]");
+  if (density == ScanDensity::kScanNet) tsdf.Validate();
   if (!(mesh_voxel_size >= 0.005 && mesh_voxel_size <= 0.5))
     fail("mesh_voxel_size must be in [0.005, 0.5] m");
   if (min_observations < 1) fail("min_observations must be >= 1");
@@ -354,6 +540,11 @@ std::vector<Eigen::Isometry3d> MakeTrajectory(const Room& room, const ScannerCon
   for (std::size_t i = 0; i < loop.size(); ++i)
     cum[i + 1] = cum[i] + (loop[(i + 1) % loop.size()] - loop[i]).norm();
   const double perimeter = cum.back();
+  double coverage = 1.0;
+  if (cfg.min_coverage < 1.0) {
+    Rng cov(HashCombine(seed, 0xc0fe7a6eULL));
+    coverage = cov.Uniform(cfg.min_coverage, 1.0);
+  }
   auto at = [&](double s) {
     s = std::fmod(s, perimeter);
     if (s < 0) s += perimeter;
@@ -373,7 +564,7 @@ std::vector<Eigen::Isometry3d> MakeTrajectory(const Room& room, const ScannerCon
   const int n = cfg.frames;
   for (int i = 0; i < n; ++i) {
     const double u = static_cast<double>(i) / n;
-    const double s = s0 + direction * perimeter * u;
+    const double s = s0 + direction * perimeter * u * coverage;
     Vec2 p = at(s);
     // Hand-held wobble.
     p += Vec2(0.12 * std::sin(2 * kPi * 3 * u + phase[0]),
@@ -436,29 +627,62 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
   const int threads = ResolveThreads(cfg.threads);
   std::vector<std::uint64_t> salts(room.objects.size());
   for (std::size_t i = 0; i < salts.size(); ++i) salts[i] = HashCombine(seed, 1000 + i);
+  const bool scannet = cfg.density == ScanDensity::kScanNet;
+  const bool colour_v2 = cfg.ColourRealism();
+  const SceneLook look = MakeLook(room, cfg, seed);
+  // Per-scene draws of the v2 features come from their own generators, so the default
+  // configuration reproduces today's scans bit for bit.
+  double height_cap = std::numeric_limits<double>::infinity();
+  if (cfg.height_cap_probability > 0) {
+    Rng cap(HashCombine(seed, 0xca9ULL));
+    if (cap.Bernoulli(cfg.height_cap_probability))
+      height_cap = cap.Uniform(cfg.height_cap_min, cfg.height_cap_max);
+  }
+  Rng exposure_rng(HashCombine(seed, 0xe7905ULL));
+
+  // Registration drift: a random walk of the pose error; with loop closure the error at the
+  // end of the loop is distributed back linearly (zero at both ends, largest in the middle).
+  std::vector<Vec3> drift_t(poses.size(), Vec3::Zero()), drift_r(poses.size(), Vec3::Zero());
+  {
+    Rng drift_rng(HashCombine(seed, 0xd71f7ULL));
+    for (std::size_t f = 1; f < poses.size(); ++f) {
+      drift_t[f] =
+          drift_t[f - 1] + Vec3(drift_rng.Normal(), drift_rng.Normal(), 0.3 * drift_rng.Normal()) *
+                               cfg.drift_translation;
+      drift_r[f] =
+          drift_r[f - 1] + Vec3(drift_rng.Normal(), drift_rng.Normal(), drift_rng.Normal()) *
+                               Deg(cfg.drift_rotation_deg);
+    }
+    if (cfg.loop_closure && poses.size() > 1) {
+      const Vec3 end_t = drift_t.back(), end_r = drift_r.back();
+      for (std::size_t f = 0; f < poses.size(); ++f) {
+        const double a = static_cast<double>(f) / static_cast<double>(poses.size() - 1);
+        drift_t[f] -= a * end_t;
+        drift_r[f] -= a * end_r;
+      }
+    }
+  }
 
   ScanResult result;
-  VoxelAccumulator acc(cfg.mesh_voxel_size);
+  VoxelAccumulator acc(scannet ? 0.01 : cfg.mesh_voxel_size);
   HashSet64 observed;
-  Rng drift_rng(HashCombine(seed, 0xd71f7ULL));
-  Vec3 drift_t = Vec3::Zero(), drift_r = Vec3::Zero();
+  std::unique_ptr<TsdfFusion> fusion;
+  if (scannet) fusion = std::make_unique<TsdfFusion>(cfg.tsdf);
   std::vector<std::vector<Return> > rows(h);
+  std::vector<float> depth_image;
   for (std::size_t f = 0; f < poses.size(); ++f) {
     const Eigen::Isometry3d& truth = poses[f];
-    if (f > 0) {
-      drift_t += Vec3(drift_rng.Normal(), drift_rng.Normal(), 0.3 * drift_rng.Normal()) *
-                 cfg.drift_translation;
-      drift_r += Vec3(drift_rng.Normal(), drift_rng.Normal(), drift_rng.Normal()) *
-                 Deg(cfg.drift_rotation_deg);
-    }
     Eigen::Isometry3d est = truth;
     if (cfg.drift_translation > 0 || cfg.drift_rotation_deg > 0) {
-      const double angle = drift_r.norm();
+      const double angle = drift_r[f].norm();
       if (angle > 0)
         est.linear() =
-            truth.linear() * Eigen::AngleAxisd(angle, drift_r / angle).toRotationMatrix();
-      est.translation() += drift_t;
+            truth.linear() * Eigen::AngleAxisd(angle, drift_r[f] / angle).toRotationMatrix();
+      est.translation() += drift_t[f];
     }
+    const double frame_gain = cfg.frame_exposure_jitter > 0
+                                  ? std::exp(exposure_rng.Normal(0, cfg.frame_exposure_jitter))
+                                  : 1.0;
     const Eigen::Matrix3f est_r = est.linear().cast<float>();
     const Eigen::Vector3f est_t = est.translation().cast<float>();
     const Eigen::Matrix3d rot = truth.linear();
@@ -466,6 +690,9 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
     auto work = [&](int row_begin, int row_end) {
       for (int v = row_begin; v < row_end; ++v) {
         Rng rng(HashCombine(HashCombine(seed, f + 1), static_cast<std::uint64_t>(v)));
+        // Draws of the v2 sensor / colour features (never touch `rng`'s sequence).
+        Rng rng2(
+            HashCombine(HashCombine(seed ^ 0x5e2502ULL, f + 1), static_cast<std::uint64_t>(v)));
         auto& out = rows[v];
         out.clear();
         for (int u = 0; u < w; ++u) {
@@ -490,18 +717,38 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
           }
           if (r_drop < p_drop) continue;
           if (o.role == ObjectRole::kCeiling) continue;
-          const double sigma = cfg.axial_noise_base + cfg.axial_noise_quad * (z - 0.4) * (z - 0.4);
-          const double zm = z + sigma * std::clamp(r_noise, -cfg.noise_clip, cfg.noise_clip);
+          const Vec3 hit = org + dw * t;
+          if (hit.z() > height_cap) continue;
+          double tex = 0;
+          if (colour_v2 || cfg.dark_dropout > 0) tex = Texture(o.material, salts[obj], hit);
+          if (cfg.dark_dropout > 0 || cfg.glossy_dropout > 0) {
+            double p2 = 0;
+            if (cfg.dark_dropout > 0) {
+              const double lum = Luminance(look.albedo[obj] * tex);
+              p2 += cfg.dark_dropout * std::clamp(1.0 - lum / cfg.dark_luminance, 0.0, 1.0);
+            }
+            if (cfg.glossy_dropout > 0 && look.gloss[obj] > 0)
+              p2 += cfg.glossy_dropout * look.gloss[obj] * std::pow(cosi, 16);
+            if (rng2.Uniform() < p2) continue;
+          }
+          const double sigma = AxialSigma(cfg, z);
+          const double zm = MeasuredDepth(cfg, z, r_noise);
           const Vec3 cam = dc * zm;  // dc has unit z
           const Vec3 pw = org + rot * cam;
           Return ret;
           ret.cam = cam.cast<float>();
           ret.world = est_r * ret.cam + est_t;
           ret.bin = est_r * (dc * z).cast<float>() + est_t;
-          ret.color = Shade(o, salts[obj], pw, n, dw, &rng);
+          if (colour_v2) {
+            const Vec3 nv = n.dot(dw) > 0 ? Vec3(-n) : n;
+            ret.color = ShadeV2(look.albedo[obj], tex, look, frame_gain, pw, nv, &rng);
+          } else {
+            ret.color = Shade(o, salts[obj], pw, n, dw, &rng);
+          }
           ret.object = obj;
+          ret.u = u;
           ret.weight = static_cast<float>(1.0 / (sigma * sigma));
-          ret.cell = CellKey(org + dw * t, obj);
+          ret.cell = CellKey(hit, obj);
           ret.keep_frame = (u % cfg.frame_pixel_stride == 0) && (v % cfg.frame_pixel_stride == 0);
           ret.keep_raw = (u % cfg.raw_pixel_stride == 0) && (v % cfg.raw_pixel_stride == 0);
           out.push_back(ret);
@@ -509,13 +756,62 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
       }
     };
     // Rows are independent (each seeds its own generator): any split gives the same scan.
-    ParallelRanges(static_cast<std::size_t>(h), threads, 1, [&](std::size_t b, std::size_t e) {
-      work(static_cast<int>(b), static_cast<int>(e));
-    });
+    {
+      ScopedTimer timer(&result.timings, "ray_cast");
+      ParallelRanges(static_cast<std::size_t>(h), threads, 1, [&](std::size_t b, std::size_t e) {
+        work(static_cast<int>(b), static_cast<int>(e));
+      });
+    }
+    if (cfg.flying_pixel_probability > 0 || scannet) {
+      depth_image.assign(static_cast<std::size_t>(w) * h, 0.0f);
+      for (int v = 0; v < h; ++v) {
+        for (const Return& r : rows[v])
+          depth_image[static_cast<std::size_t>(v) * w + r.u] = r.cam.z();
+      }
+    }
+    if (cfg.flying_pixel_probability > 0) {
+      // Flying pixels: at a depth edge the sensor mixes the two surfaces.
+      const std::vector<float> z0 = depth_image;
+      for (int v = 0; v < h; ++v) {
+        for (Return& r : rows[v]) {
+          const float z = r.cam.z();
+          float other = z;
+          const int du[4] = {1, -1, 0, 0}, dv[4] = {0, 0, 1, -1};
+          for (int k = 0; k < 4; ++k) {
+            const int uu = r.u + du[k], vv = v + dv[k];
+            if (uu < 0 || vv < 0 || uu >= w || vv >= h) continue;
+            const float zn = z0[static_cast<std::size_t>(vv) * w + uu];
+            if (zn > 0 && std::abs(zn - z) > std::abs(other - z)) other = zn;
+          }
+          if (std::abs(other - z) <= cfg.flying_pixel_edge) continue;
+          const std::uint64_t key = HashCombine(HashCombine(seed ^ 0xf1f1ULL, f),
+                                                static_cast<std::uint64_t>(v) * w + r.u);
+          const double r1 = static_cast<double>(Mix64(key) >> 11) * (1.0 / 9007199254740992.0);
+          if (r1 >= cfg.flying_pixel_probability) continue;
+          const double r2 = static_cast<double>(Mix64(key + 1) >> 11) * (1.0 / 9007199254740992.0);
+          const float zf = static_cast<float>(z + r2 * (other - z));
+          r.cam *= zf / z;
+          r.world = est_r * r.cam + est_t;
+          depth_image[static_cast<std::size_t>(v) * w + r.u] = zf;
+        }
+      }
+    }
     result.rays += static_cast<std::size_t>(w) * h;
     ScanFrame frame;
     frame.pose = est;
     frame.true_pose = truth;
+    RgbdFrame rgbd;
+    if (scannet) {
+      rgbd.width = w;
+      rgbd.height = h;
+      rgbd.fx = fx;
+      rgbd.fy = fy;
+      rgbd.cx = cx - 0.5;  // pixel centres at integer coordinates (Open3D's convention)
+      rgbd.cy = cy - 0.5;
+      rgbd.depth = depth_image;
+      rgbd.color.assign(static_cast<std::size_t>(w) * h, Color(0, 0, 0));
+      rgbd.pose = est;
+    }
     std::uint64_t last_cell = ~0ULL;
     for (int v = 0; v < h; ++v) {
       for (const Return& r : rows[v]) {
@@ -526,6 +822,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
         }
         if (cfg.density == ScanDensity::kMesh) {
           acc.Add(r.bin, r.world, r.color, r.object, r.weight);
+        } else if (scannet) {
+          rgbd.color[static_cast<std::size_t>(v) * w + r.u] = r.color;
+          // Labels: the noise-free surface returns, in the estimated (fused) frame.
+          if (r.keep_raw) acc.Add(r.bin, r.bin, r.color, r.object, 1.0);
         } else if (r.keep_raw) {
           result.points.push_back(r.world.cast<double>());
           result.colors.push_back(r.color);
@@ -537,6 +837,7 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
         }
       }
     }
+    if (scannet) fusion->Integrate(rgbd);
     result.poses.push_back(est);
     if (cfg.keep_frames) result.frames.push_back(std::move(frame));
   }
@@ -562,6 +863,38 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
         result.object.push_back(e.object);
       }
       i = j;
+    }
+  } else if (scannet) {
+    FusedMesh fused = fusion->Extract();
+    fusion.reset();
+    result.timings.Merge(fused.timings);
+    ScopedTimer timer(&result.timings, "labels");
+    // Label of a mesh vertex: the object of the nearest surface return (1 cm cell centroids);
+    // vertices farther than the truncation from every return (marching-cubes bridges over
+    // holes) are dropped with their triangles.
+    const auto entries = acc.Entries();
+    std::vector<Vec3> centres;
+    std::vector<int> owner;
+    centres.reserve(entries.size());
+    for (const auto& e : entries) {
+      centres.emplace_back(e.sx / e.w, e.sy / e.w, e.sz / e.w);
+      owner.push_back(e.object);
+    }
+    const geometry::KdTree tree(std::move(centres));
+    const double max_d = std::max(cfg.tsdf.truncation, 0.03);
+    std::vector<int> remap(fused.mesh.vertices.size(), -1);
+    for (std::size_t i = 0; i < fused.mesh.vertices.size(); ++i) {
+      if (tree.empty()) break;
+      const auto nn = tree.Nearest(fused.mesh.vertices[i]);
+      if (nn.first < 0 || nn.second > max_d * max_d) continue;  // squared distance
+      remap[i] = static_cast<int>(result.points.size());
+      result.points.push_back(fused.mesh.vertices[i].cast<float>().cast<double>());
+      result.colors.push_back(fused.colors[i]);
+      result.object.push_back(owner[nn.first]);
+    }
+    for (const auto& face : fused.mesh.faces) {
+      const geometry::Vec3i g(remap[face[0]], remap[face[1]], remap[face[2]]);
+      if (g.minCoeff() >= 0) result.faces.push_back(g);
     }
   }
   result.observed_cells = observed.Sorted();

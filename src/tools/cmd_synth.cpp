@@ -43,6 +43,7 @@ struct SynthOptions {
   std::string out;
   std::string shard = "0/1";
   std::string density = "mesh";
+  std::string realism = "auto";  // auto = v2 for --density scannet, off otherwise
   bool bags = false;
   int frames = 60;
   int jobs = 0;
@@ -164,6 +165,11 @@ RunResult RunSynth(const SynthOptions& o) {
   config.scanner.threads = 1;  // parallel over scenes instead
   config.scanner.drift_translation = o.drift;
   config.scanner.drift_rotation_deg = o.drift * 40.0;
+  if (o.realism != "auto" && o.realism != "off" && o.realism != "v2")
+    throw dimr::InvalidArgument("--realism: expected auto, off or v2, got '" + o.realism + "'");
+  if (o.realism == "v2" ||
+      (o.realism == "auto" && config.scanner.density == dimr::data::ScanDensity::kScanNet))
+    config.scanner.EnableRealism();
   config.Validate();
 
   const fs::path out(o.out);
@@ -258,7 +264,12 @@ void AddCommon(CLI::App& app, SynthOptions* o) {
   app.add_option("--shard", o->shard, "Generate only scenes i with i % n == shard (i/n)")
       ->capture_default_str();
   app.add_option("--density", o->density,
-                 "mesh (ScanNet vertex-like, ~1 point per 2 cm voxel) | raw (accumulated scan)")
+                 "mesh (ScanNet vertex-like, ~1 point per 2 cm voxel) | raw (accumulated scan) | "
+                 "scannet (TSDF fusion, marching cubes, decimation: ScanNet's vh_clean_2 chain)")
+      ->capture_default_str();
+  app.add_option("--realism", o->realism,
+                 "SynthScan v2 sensor / trajectory / colour realism: auto (on for scannet) | off "
+                 "| v2")
       ->capture_default_str();
   app.add_option("--frames-per-scene", o->frames, "Depth frames per scene")->capture_default_str();
   app.add_option("--jobs", o->jobs, "Scenes generated in parallel (0 = all cores)")

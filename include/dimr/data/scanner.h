@@ -11,13 +11,18 @@
 #include <vector>
 
 #include "dimr/data/room.h"
+#include "dimr/data/tsdf_fusion.h"
 #include "dimr/geometry/types.h"
 
 namespace dimr::data {
 
 enum class ScanDensity {
   kMesh,  // one point per occupied `mesh_voxel_size` voxel (ScanNet mesh-vertex-like)
-  kRaw    // every valid depth return of every frame (what a robot accumulates)
+  kRaw,   // every valid depth return of every frame (what a robot accumulates)
+  // ScanNet's own chain: RGB-D frames fused into a TSDF, marching cubes, small-component
+  // cleaning, quadric decimation to ScanNet's vertex density; the output points are the mesh
+  // vertices with fused colours (tsdf_fusion.h), labelled by the nearest surface return.
+  kScanNet
 };
 const char* ScanDensityName(ScanDensity d);
 ScanDensity ScanDensityFromName(const std::string& name);  // throws InvalidArgument
@@ -39,9 +44,26 @@ struct ScannerConfig {
   double yaw_sweep_deg = 35.0;  // amplitude of the left/right sweep around the look-at
   // Depth noise: sigma_z(z) = axial_noise_base + axial_noise_quad * (z - 0.4)^2 (Kinect-like,
   // Nguyen et al. 2012), truncated at noise_clip sigmas; lateral noise in pixels.
+  // With axial_noise_z0 = 0 this is the structured-light form a + b z^2.
   double axial_noise_base = 0.0012;
   double axial_noise_quad = 0.0019;
+  double axial_noise_z0 = 0.4;
   double noise_clip = 2.5;
+  // Disparity quantisation: the inverse depth is rounded to multiples of this (1/m); the depth
+  // step is then disparity_quantum * z^2 (Kinect v1: 1/8 px at f = 580 px, baseline 7.5 cm ->
+  // 0.0029 / m). 0 = off.
+  double disparity_quantum = 0.0;
+  // Flying pixels: a return whose 4-neighbour depth differs by more than flying_pixel_edge
+  // (metres) gets, with this probability, a depth between the two surfaces. 0 = off.
+  double flying_pixel_probability = 0.0;
+  double flying_pixel_edge = 0.08;
+  // Dropout on dark surfaces: extra probability rising linearly to dark_dropout as the shaded
+  // linear luminance falls from dark_luminance to 0 (structured light does not return from
+  // black). Glossy surfaces (displays, lacquered furniture): extra glossy_dropout * cos^16 of
+  // the incidence angle (specular saturation when looked at head-on). 0 = off.
+  double dark_dropout = 0.0;
+  double dark_luminance = 0.08;
+  double glossy_dropout = 0.0;
   double lateral_noise_px = 0.4;
   // Dropout: random, and growing from grazing_start_deg to grazing_end_deg incidence.
   double dropout = 0.02;
@@ -50,6 +72,35 @@ struct ScannerConfig {
   // Registration drift: slowly varying pose error (random walk, metres / degrees per frame).
   double drift_translation = 0.0;
   double drift_rotation_deg = 0.0;
+  // Loop closure: the accumulated drift is removed linearly along the trajectory so that the
+  // end meets the start again; the middle keeps a misregistration (ghosted double surfaces
+  // where the loop's parts overlap), like a SLAM-registered hand-held scan.
+  bool loop_closure = false;
+  // Hand-held coverage: the walked part of the loop is drawn in [min_coverage, 1] per scene
+  // (1 = the whole loop), so parts of the room are seen from one side only or not at all.
+  double min_coverage = 1.0;
+  // Scans that stop at a height (ScanNet scene0470_00: nothing above 1.37 m): with this
+  // probability per scene, returns above a height drawn in [height_cap_min, height_cap_max]
+  // are dropped.
+  double height_cap_probability = 0.0;
+  double height_cap_min = 1.3;
+  double height_cap_max = 1.9;
+  // Colour realism (0 / false = today's colours). Per scene: white balance = per-channel gain
+  // exp(N(0, white_balance_jitter)), exposure gain exp(N(0, exposure_jitter)); per frame an
+  // auto-exposure gain exp(N(0, frame_exposure_jitter)).
+  double white_balance_jitter = 0.0;
+  double exposure_jitter = 0.0;
+  double frame_exposure_jitter = 0.0;
+  // Lambert shading from one point light under the ceiling (random per scene) + ambient,
+  // instead of today's fixed directional light and view term.
+  bool lambert_shading = false;
+  double ambient = 0.35;
+  // Material colour variety in [0, 1]: walls / floors / doors take a per-scene colour from
+  // palettes of real paints, woods, tiles and carpets, furniture a per-object brightness and
+  // tint jitter; blended with the room's own material by this weight.
+  double material_variety = 0.0;
+  // ScanNet mode: TSDF fusion and decimation settings.
+  TsdfConfig tsdf;
   // Output density.
   ScanDensity density = ScanDensity::kMesh;
   double mesh_voxel_size = 0.045;  // 4.5 cm cells: ~1 point per occupied 2 cm voxel (ScanNet)
@@ -65,7 +116,19 @@ struct ScannerConfig {
   int threads = 0;  // ray-casting threads (0 = hardware concurrency)
   // Throws dimr::InvalidArgument naming the bad field.
   void Validate() const;
+  // SynthScan v2 realism (sensor, trajectory, colour) on top of this config; density unchanged.
+  void EnableRealism();
+  bool ColourRealism() const {
+    return white_balance_jitter > 0 || exposure_jitter > 0 || frame_exposure_jitter > 0 ||
+           lambert_shading || material_variety > 0;
+  }
 };
+
+// Axial depth noise sigma(z) = base + quad * (z - z0)^2 (metres).
+double AxialSigma(const ScannerConfig& config, double z);
+// The depth the sensor reports for true depth z: axial noise (standard_normal truncated at
+// noise_clip) then disparity quantisation. The scanner uses exactly this.
+double MeasuredDepth(const ScannerConfig& config, double z, double standard_normal);
 
 // One depth frame as a sensor would publish it.
 struct ScanFrame {
@@ -79,11 +142,16 @@ struct ScanFrame {
 struct ScanResult {
   std::vector<geometry::Vec3> points;  // world frame (float-representable)
   std::vector<geometry::Color> colors;
-  std::vector<int> object;               // index into Room::objects
+  std::vector<int> object;  // index into Room::objects
+  // ScanNet mode: the triangles of the decimated mesh whose vertices are `points`.
+  std::vector<geometry::Vec3i> faces;
   std::vector<Eigen::Isometry3d> poses;  // map <- camera (estimated) per frame
   std::vector<ScanFrame> frames;         // only with keep_frames
-  std::size_t rays = 0;                  // rays cast
-  std::size_t returns = 0;               // valid depth returns
+  // ScanNet mode: ray_cast (all frames), then the fusion's integrate, marching_cubes, clean,
+  // decimate, colour, then labels.
+  Timings timings;
+  std::size_t rays = 0;     // rays cast
+  std::size_t returns = 0;  // valid depth returns
   // Sorted CellKey()s of the true surface points every valid return hit (1 cm cells), for
   // visibility (partiality) statistics.
   std::vector<std::uint64_t> observed_cells;
