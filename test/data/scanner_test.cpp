@@ -3,10 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <numeric>
 
 #include "dimr/data/labels.h"
+#include "dimr/data/synth_random.h"
 #include "dimr/data/synthscan.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/kdtree.h"
@@ -243,6 +245,98 @@ TEST(ScannerTest, ScanNetModeFusesAMeshLabelledByItsObjects) {
     ASSERT_EQ(again.colors[k], scan.colors[k]) << k;
     ASSERT_EQ(again.object[k], scan.object[k]) << k;
   }
+}
+
+TEST(ScannerTest, StructuredLightNoiseModelStatistics) {
+  ScannerConfig c;
+  c.EnableRealism();  // sigma(z) = 0.0005 + 0.0025 z^2, disparity steps 0.0029 z^2
+  ASSERT_EQ(c.axial_noise_z0, 0.0);
+  EXPECT_NEAR(AxialSigma(c, 2.0), 0.0005 + 0.0025 * 4, 1e-12);
+  synth::Rng rng(42);
+  // Truncated standard normal at 2.5 sigma has standard deviation 0.9668.
+  const double trunc_sd = 0.9668;
+  for (double z : {1.0, 2.0, 3.0}) {
+    c.disparity_quantum = 0;
+    const int n = 40000;
+    double sum = 0, sum2 = 0, mx = 0;
+    for (int i = 0; i < n; ++i) {
+      const double e = MeasuredDepth(c, z, rng.Normal()) - z;
+      sum += e;
+      sum2 += e * e;
+      mx = std::max(mx, std::abs(e));
+    }
+    const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
+    const double sigma = AxialSigma(c, z);
+    EXPECT_NEAR(sd, trunc_sd * sigma, 0.03 * sigma) << z;
+    EXPECT_NEAR(mean, 0.0, 0.03 * sigma) << z;
+    EXPECT_LE(mx, c.noise_clip * sigma + 1e-12) << z;
+    // Disparity quantisation: depths fall on levels 1 / (k q), spaced ~ q z^2 apart.
+    c.disparity_quantum = 0.0029;
+    std::vector<double> levels;
+    for (int i = 0; i < 2000; ++i) levels.push_back(MeasuredDepth(c, z, rng.Normal()));
+    std::sort(levels.begin(), levels.end());
+    levels.erase(std::unique(levels.begin(), levels.end()), levels.end());
+    ASSERT_GT(levels.size(), 2u) << z;
+    for (double l : levels) {
+      const double k = 1.0 / (l * c.disparity_quantum);
+      EXPECT_NEAR(k, std::round(k), 1e-6) << z;
+    }
+    const double step = levels[levels.size() / 2 + 1] - levels[levels.size() / 2];
+    EXPECT_NEAR(step, c.disparity_quantum * z * z, 0.1 * c.disparity_quantum * z * z) << z;
+  }
+  // Today's default (Kinect model of Nguyen et al.): sigma(z) = 0.0012 + 0.0019 (z - 0.4)^2.
+  const ScannerConfig d;
+  EXPECT_NEAR(AxialSigma(d, 2.4), 0.0012 + 0.0019 * 4, 1e-12);
+  EXPECT_EQ(MeasuredDepth(d, 2.0, 0.0), 2.0);
+}
+
+TEST(ScannerTest, RealismChangesColoursAndKeepsDefaultsOff) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 6;
+  EXPECT_FALSE(c.ColourRealism());
+  const ScanResult plain = ScanRoom(room, c, 3);
+  c.EnableRealism();
+  EXPECT_TRUE(c.ColourRealism());
+  const ScanResult v2 = ScanRoom(room, c, 3);
+  ASSERT_GT(v2.points.size(), 1000u);
+  // Colour spread per channel grows (palettes, exposure, shading).
+  auto spread = [](const ScanResult& s) {
+    double total = 0;
+    for (int k = 0; k < 3; ++k) {
+      double m = 0, m2 = 0;
+      for (const auto& col : s.colors) {
+        m += col[k];
+        m2 += double(col[k]) * col[k];
+      }
+      m /= s.colors.size();
+      total += std::sqrt(m2 / s.colors.size() - m * m);
+    }
+    return total / 3;
+  };
+  std::printf("colour std: plain %.1f, v2 %.1f\n", spread(plain), spread(v2));
+  EXPECT_GT(spread(v2), spread(plain) + 10);
+  // Same seed -> identical v2 scan.
+  const ScanResult again = ScanRoom(room, c, 3);
+  ASSERT_EQ(again.points.size(), v2.points.size());
+  for (std::size_t k = 0; k < v2.points.size(); ++k) {
+    ASSERT_EQ(again.points[k], v2.points[k]);
+    ASSERT_EQ(again.colors[k], v2.colors[k]);
+  }
+  // Height cap: no surface above the cap.
+  c.height_cap_probability = 1.0;
+  c.height_cap_min = c.height_cap_max = 1.0;
+  const ScanResult capped = ScanRoom(room, c, 3);
+  for (const auto& p : capped.points) EXPECT_LT(p.z(), 1.0 + 0.08);
+  c = SmallScanner();
+  c.min_coverage = 0.05;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
+  c = SmallScanner();
+  c.density = ScanDensity::kScanNet;
+  c.tsdf.truncation = 0.001;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
+  EXPECT_EQ(ScanDensityFromName("scannet"), ScanDensity::kScanNet);
+  EXPECT_STREQ(ScanDensityName(ScanDensity::kScanNet), "scannet");
 }
 
 }  // namespace
