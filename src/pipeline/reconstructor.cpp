@@ -79,7 +79,9 @@ struct Reconstructor::Impl {
       planes = decoder.Planes(code, cad_class);
     }
     ScopedTimer s(t, "mesh");
-    return PlaceCanonicalMesh(decoder.MeshFromPlanes(planes).mesh, box);
+    geometry::OrientedBox scaled = box;
+    scaled.size *= config.decoded_mesh_scale;
+    return PlaceCanonicalMesh(decoder.MeshFromPlanes(planes).mesh, scaled);
   }
 };
 
@@ -360,7 +362,11 @@ SceneResult Reconstructor::Reconstruct(const PointCloudInput& input) const {
     scene.features = &s1.features;
     scene.feature_dim = s1.feature_dim;
     scene.floor_z = s1.network_origin.z();
-    dets = impl_->stage2.Detect(scene, s1.instances, filter);
+    dets = impl_->stage2.Predict(scene, s1.instances);
+    if (cfg.score == ScoreRanking::kCombined) {
+      for (Stage2Detection& d : dets) d.score = std::sqrt(std::max(0.0, d.stage1_score * d.score));
+    }
+    dets = FilterDetections(std::move(dets), filter);
   }
 
   // ---- shapes, placement, ICP.

@@ -37,6 +37,16 @@ ReconstructionPreset ParseReconstructionPreset(const std::string& name) {
   throw InvalidArgument("preset: unknown preset '" + name + "' (fast or accurate)");
 }
 
+const char* ScoreRankingName(ScoreRanking r) {
+  return r == ScoreRanking::kCombined ? "combined" : "stage2";
+}
+
+ScoreRanking ParseScoreRanking(const std::string& name) {
+  if (name == "stage2") return ScoreRanking::kStage2;
+  if (name == "combined") return ScoreRanking::kCombined;
+  throw InvalidArgument("score: unknown score ranking '" + name + "' (stage2 or combined)");
+}
+
 void ReconstructorConfig::Validate() const {
   auto bad = [](const std::string& key, const std::string& why) {
     throw InvalidArgument("reconstructor config: " + key + " " + why);
@@ -55,6 +65,10 @@ void ReconstructorConfig::Validate() const {
   if (min_points < 0) bad("min_points", "must be >= 0 (got " + std::to_string(min_points) + ")");
   if (!std::isfinite(nms_iou) || nms_iou < 0 || nms_iou > 1) {
     bad("nms_iou", "must be in [0, 1] (got " + std::to_string(nms_iou) + ")");
+  }
+  if (!std::isfinite(decoded_mesh_scale) || decoded_mesh_scale <= 0.5 || decoded_mesh_scale > 2) {
+    bad("decoded_mesh_scale",
+        "must be in (0.5, 2] (got " + std::to_string(decoded_mesh_scale) + ")");
   }
   if (max_points < 1) bad("max_points", "must be >= 1");
   if (min_input_points < 1) bad("min_input_points", "must be >= 1");
@@ -90,14 +104,19 @@ std::string ReconstructorConfig::ToYaml() const {
     << "score_threshold: " << score_threshold << "\n"
     << "min_points: " << min_points << "\n"
     << "nms_iou: " << nms_iou << "\n"
+    << "score: " << ScoreRankingName(score) << "\n"
+    << "decoded_mesh_scale: " << decoded_mesh_scale << "\n"
     << "box_residual: " << (box_residual ? "true" : "false") << "\n"
     << "multi_scale: " << (multi_scale ? "true" : "false") << "\n"
     << "icp:\n"
     << "  enabled: " << (icp.enabled ? "true" : "false") << "\n"
+    << "  backend: " << IcpBackendName(icp.backend) << "\n"
+    << "  metric: " << IcpMetricName(icp.metric) << "\n"
     << "  max_correspondence: " << icp.max_correspondence << "\n"
     << "  max_iterations: " << icp.max_iterations << "\n"
     << "  samples: " << icp.samples << "\n"
     << "  max_tilt_deg: " << icp.max_tilt_deg << "\n"
+    << "  relative_rms_change: " << icp.relative_rms_change << "\n"
     << "max_points: " << max_points << "\n"
     << "min_input_points: " << min_input_points << "\n"
     << "crop: " << (crop ? "true" : "false") << "\n"

@@ -45,6 +45,7 @@ std::vector<Stage2Detection> Stage2Predictor::Predict(
     Stage2Detection& d = out[k];
     d.proposal = static_cast<int>(k);
     d.cad_class = p.cad_class;
+    d.stage1_score = p.score;
     d.points = p.points;
     try {
       samples.push_back(CanonicaliseProposal(*scene.points, *scene.features, fd, scene.floor_z,

@@ -1,5 +1,6 @@
 // `dimr bench reconstruct`: the whole Reconstructor per room of a fixed size (default 100k
-// points, a seeded random subset of each room), per-stage split, median over rooms, peak RSS,
+// points: a room with fewer gets the next rooms of the split placed beside it, then a seeded
+// random subset of exactly that many points), per-stage split, median over rooms, peak RSS,
 // for each preset and thread count. Prints the CPU model and the sparse kernel path.
 //
 //   dimr bench reconstruct --rooms data/test60 --count 5 --points 100000
@@ -10,6 +11,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -37,6 +39,9 @@ struct BenchArgs {
   dimr::pipeline::ReconstructorConfig config;
   std::uint64_t seed = 1;
   std::string json_out;
+  std::string icp_backend = "own";
+  int max_tiles = 4;
+  std::string icp_metric = "point_to_point";
 };
 
 std::vector<std::string> Split(const std::string& s) {
@@ -93,18 +98,64 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& Stages() {
   return kStages;
 }
 
-void RunBench(const BenchArgs& a) {
+void RunBench(BenchArgs& a) {
   if (a.rooms.empty())
     throw dimr::InvalidArgument("--rooms DIR (e.g. a SynthScan split) is required");
   if (a.points < 1000) throw dimr::InvalidArgument("--points must be >= 1000");
+  a.config.icp.backend = dimr::pipeline::ParseIcpBackend(a.icp_backend);
+  a.config.icp.metric = dimr::pipeline::ParseIcpMetric(a.icp_metric);
+  a.config.icp.Validate();
   std::vector<dimr::tools::InputScene> scenes = dimr::tools::ListInputScenes(a.rooms);
-  if (static_cast<int>(scenes.size()) > a.count) scenes.resize(a.count);
+  if (scenes.empty()) throw dimr::InvalidArgument("--rooms: no rooms in '" + a.rooms + "'");
+  std::vector<dimr::pipeline::PointCloudInput> loaded;
+  const std::size_t wanted = std::min(
+      scenes.size(), static_cast<std::size_t>(a.count) * static_cast<std::size_t>(a.max_tiles));
+  for (std::size_t i = 0; i < wanted; ++i) {
+    dimr::tools::LoadInputScene(&scenes[i]);
+    loaded.push_back(
+        dimr::pipeline::PointCloudInput::FromPointCloud(scenes[i].cloud, scenes[i].name));
+    scenes[i].cloud = {};
+  }
+  // Bench room b: room b alone if it has `points` points; otherwise rooms b, b+1, ... (cyclic)
+  // side by side along x with a 0.5 m gap (an apartment of several rooms at the scan density
+  // the models were trained on) until it does, at most max_tiles rooms. Then a seeded random
+  // subset of exactly `points` points (colours / normals alike).
   std::vector<dimr::pipeline::PointCloudInput> inputs;
-  for (auto& s : scenes) {
-    dimr::tools::LoadInputScene(&s);
-    auto in = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
+  std::vector<int> tiles_used;
+  const int count = std::min<int>(a.count, static_cast<int>(loaded.size()));
+  for (int b = 0; b < count; ++b) {
+    dimr::pipeline::PointCloudInput in;
+    in.name = loaded[static_cast<std::size_t>(b)].name;
+    float x_end = 0;
+    int tiles = 0;
+    while (static_cast<int>(in.size()) < a.points && tiles < a.max_tiles &&
+           tiles < static_cast<int>(loaded.size())) {
+      const auto& r = loaded[(static_cast<std::size_t>(b) + tiles) % loaded.size()];
+      float x_min = std::numeric_limits<float>::max(), x_max = -x_min;
+      for (const auto& p : r.points) {
+        x_min = std::min(x_min, p.x());
+        x_max = std::max(x_max, p.x());
+      }
+      const float shift = tiles == 0 ? 0.0f : x_end + 0.5f - x_min;
+      for (std::size_t i = 0; i < r.size(); ++i) {
+        in.points.push_back(r.points[i] + Eigen::Vector3f(shift, 0, 0));
+      }
+      const bool colours = r.has_colors() && (tiles == 0 || in.has_colors());
+      if (colours)
+        in.colors.insert(in.colors.end(), r.colors.begin(), r.colors.end());
+      else
+        in.colors.clear();
+      const bool normals = r.has_normals() && (tiles == 0 || in.has_normals());
+      if (normals)
+        in.normals.insert(in.normals.end(), r.normals.begin(), r.normals.end());
+      else
+        in.normals.clear();
+      x_end = x_max + shift;
+      ++tiles;
+      if (tiles > 1) in.name += "+" + r.name;
+    }
+    tiles_used.push_back(tiles);
     if (static_cast<int>(in.size()) > a.points) {
-      // A seeded random subset of exactly `points` points (colours / normals alike).
       std::vector<std::size_t> idx(in.size());
       std::iota(idx.begin(), idx.end(), 0);
       std::mt19937_64 rng(a.seed);
@@ -122,14 +173,29 @@ void RunBench(const BenchArgs& a) {
     }
     inputs.push_back(std::move(in));
   }
+  loaded.clear();
+  std::vector<double> sizes;
+  for (const auto& in : inputs) sizes.push_back(static_cast<double>(in.size()));
   std::printf(
-      "CPU: %s\nsparse kernel path: %s\nrooms: %zu from %s, %d points each (fewer if a "
-      "room has fewer)\n",
-      CpuModel().c_str(), KernelPath().c_str(), inputs.size(), a.rooms.c_str(), a.points);
+      "CPU: %s\nsparse kernel path: %s\nrooms: %zu from %s, at most %d points each (median "
+      "%.0f; each of up to %d rooms side by side, median %.0f)\nICP: %s %s, <= %d iterations, "
+      "%d samples\n",
+      CpuModel().c_str(), KernelPath().c_str(), inputs.size(), a.rooms.c_str(), a.points,
+      Median(sizes), a.max_tiles, Median(std::vector<double>(tiles_used.begin(), tiles_used.end())),
+      dimr::pipeline::IcpBackendName(a.config.icp.backend),
+      dimr::pipeline::IcpMetricName(a.config.icp.metric), a.config.icp.max_iterations,
+      a.config.icp.samples);
   nlohmann::json out;
   out["cpu"] = CpuModel();
   out["kernel_path"] = KernelPath();
   out["points"] = a.points;
+  out["points_median"] = Median(sizes);
+  out["rooms_side_by_side_median"] =
+      Median(std::vector<double>(tiles_used.begin(), tiles_used.end()));
+  out["icp_backend"] = dimr::pipeline::IcpBackendName(a.config.icp.backend);
+  out["icp_metric"] = dimr::pipeline::IcpMetricName(a.config.icp.metric);
+  out["icp_max_iterations"] = a.config.icp.max_iterations;
+  out["icp_samples"] = a.config.icp.samples;
   out["rooms"] = inputs.size();
   out["runs"] = nlohmann::json::array();
   std::printf("\n%-9s %3s %9s", "preset", "thr", "total ms");
@@ -204,7 +270,19 @@ void SetupBench(CLI::App& app) {
   app.add_option("--pool", a->config.pool, "pool")->capture_default_str();
   app.add_option("--pool-meshes", a->config.pool_meshes, "retrieval: pool CAD tree");
   app.add_option("--seed", a->seed, "subset seed")->capture_default_str();
+  app.add_option("--max-rooms-side-by-side", a->max_tiles,
+                 "a room with fewer than --points points gets the next rooms placed beside it "
+                 "(up to this many rooms in all; 1 = never)")
+      ->capture_default_str()
+      ->check(CLI::Range(1, 64));
   app.add_option("--json", a->json_out, "write the results as JSON here");
+  app.add_option("--icp-backend", a->icp_backend, "ICP: own or pcl")->capture_default_str();
+  app.add_option("--icp-metric", a->icp_metric, "ICP (own): point_to_point or point_to_plane")
+      ->capture_default_str();
+  app.add_option("--icp-iterations", a->config.icp.max_iterations, "ICP: at most this many")
+      ->capture_default_str();
+  app.add_option("--icp-samples", a->config.icp.samples, "ICP: mesh surface samples")
+      ->capture_default_str();
   app.callback([a]() { RunBench(*a); });
 }
 

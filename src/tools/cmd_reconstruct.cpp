@@ -36,6 +36,9 @@ struct ReconstructArgs {
   std::string crop;  // xmin,ymin,zmin,xmax,ymax,zmax
   double scale = 1.0;
   bool no_icp = false;
+  std::string icp_backend = "own";
+  std::string score = "stage2";
+  std::string icp_metric = "point_to_point";
   bool no_box_residual = false;
   bool single_scale = false;
   bool no_picture = false;
@@ -83,6 +86,9 @@ void RunReconstruct(ReconstructArgs& a) {
   cfg.samples = a.samples;
   cfg.seed = a.seed;
   cfg.icp.enabled = !a.no_icp;
+  cfg.icp.backend = dimr::pipeline::ParseIcpBackend(a.icp_backend);
+  cfg.score = dimr::pipeline::ParseScoreRanking(a.score);
+  cfg.icp.metric = dimr::pipeline::ParseIcpMetric(a.icp_metric);
   if (!a.crop.empty()) {
     const auto v = ParseNumbers(a.crop, 6, "--crop");
     cfg.crop = true;
@@ -191,12 +197,26 @@ void SetupReconstruct(CLI::App& app) {
   app.add_option("--min-points", c.min_points, "keep proposals with more points")
       ->capture_default_str();
   app.add_option("--nms", c.nms_iou, "point-IoU NMS threshold")->capture_default_str();
+  app.add_option("--score", a->score,
+                 "detection score: stage2 (confidence) or combined (sqrt(stage-1 x stage-2))")
+      ->capture_default_str();
+  app.add_option("--decoded-mesh-scale", c.decoded_mesh_scale,
+                 "decoded meshes span size/2 x this (1 = reference; 1.032 = fill the box)")
+      ->capture_default_str();
   app.add_option("--max-points", c.max_points, "refuse larger clouds")->capture_default_str();
   app.add_option("--crop", a->crop, "keep points in xmin,ymin,zmin,xmax,ymax,zmax (input frame)");
   app.add_option("--scale", a->scale, "multiply coordinates first (0.001 for millimetres)")
       ->capture_default_str();
   app.add_option("--threads", c.threads, "network threads (0 = default)")->capture_default_str();
   app.add_flag("--no-icp", a->no_icp, "skip the ICP refinement (ablation)");
+  app.add_option("--icp-backend", a->icp_backend, "ICP: own (kd-tree, early stop) or pcl")
+      ->capture_default_str();
+  app.add_option("--icp-metric", a->icp_metric, "ICP (own): point_to_point or point_to_plane")
+      ->capture_default_str();
+  app.add_option("--icp-iterations", c.icp.max_iterations, "ICP: at most this many iterations")
+      ->capture_default_str();
+  app.add_option("--icp-samples", c.icp.samples, "ICP: surface samples of the mesh (source)")
+      ->capture_default_str();
   app.add_flag("--no-box-residual", a->no_box_residual,
                "place by the proposal box, without stage 2's box residual (ablation)");
   app.add_flag("--single-scale", a->single_scale,

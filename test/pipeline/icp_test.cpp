@@ -4,6 +4,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <cstdio>
 
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/kdtree.h"
@@ -68,19 +69,31 @@ TEST(Icp, ImprovesAPerturbedPlacementAndIsAccepted) {
   placed.Transform(r, c - r * c + geometry::Vec3(0.025, -0.015, 0.0));
   const double before = MeanDistance(placed, target);
 
-  IcpConfig cfg;
-  const IcpResult res = RefineMeshByIcp(&placed, target, cfg);
-  ASSERT_TRUE(res.ran);
-  EXPECT_TRUE(res.accepted) << res.note;
-  EXPECT_GT(res.source_points, 1000);
-  EXPECT_LE(res.source_points, cfg.samples);
-  const double after = MeanDistance(placed, target);
-  EXPECT_LT(after, 0.5 * before) << "before " << before << " after " << after;
-  EXPECT_LT(after, 0.006);
-  // The recovered yaw undoes the perturbation.
-  EXPECT_NEAR(res.yaw, -6.0 * M_PI / 180.0, 1.0 * M_PI / 180.0);
-  EXPECT_LT(std::abs(res.roll), 1.0 * M_PI / 180.0);
-  EXPECT_LT(std::abs(res.pitch), 1.0 * M_PI / 180.0);
+  // Both backends (the own ICP with both metrics, PCL's with the first pipeline's settings).
+  for (int variant = 0; variant < 3; ++variant) {
+    IcpConfig cfg;
+    cfg.backend = variant == 2 ? IcpBackend::kPcl : IcpBackend::kOwn;
+    cfg.metric = variant == 1 ? IcpMetric::kPointToPlane : IcpMetric::kPointToPoint;
+    SCOPED_TRACE(std::string(IcpBackendName(cfg.backend)) + " " + IcpMetricName(cfg.metric));
+    if (!IcpBackendAvailable(cfg.backend)) continue;
+    if (cfg.backend == IcpBackend::kPcl) {
+      cfg.max_iterations = 300;
+      cfg.samples = 2048;
+    }
+    geometry::TriangleMesh mesh = placed;
+    const IcpResult res = RefineMeshByIcp(&mesh, target, cfg);
+    ASSERT_TRUE(res.ran);
+    EXPECT_TRUE(res.accepted) << res.note;
+    EXPECT_GT(res.source_points, cfg.samples / 2);
+    EXPECT_LE(res.source_points, cfg.samples);
+    const double after = MeanDistance(mesh, target);
+    EXPECT_LT(after, 0.5 * before) << "before " << before << " after " << after;
+    EXPECT_LT(after, 0.006);
+    // The recovered yaw undoes the perturbation.
+    EXPECT_NEAR(res.yaw, -6.0 * M_PI / 180.0, 1.0 * M_PI / 180.0);
+    EXPECT_LT(std::abs(res.roll), 1.0 * M_PI / 180.0);
+    EXPECT_LT(std::abs(res.pitch), 1.0 * M_PI / 180.0);
+  }
 }
 
 TEST(Icp, RejectsATiltBeyondTheLimitAndLeavesTheMesh) {
@@ -109,6 +122,96 @@ TEST(Icp, RejectsATiltBeyondTheLimitAndLeavesTheMesh) {
   const IcpResult acc = RefineMeshByIcp(&copy, target, loose);
   EXPECT_TRUE(acc.accepted);
   EXPECT_NE(copy.vertices[0], placed.vertices[0]);
+}
+
+// A known small rigid motion (4 deg yaw, 1.5 deg roll, 1 deg pitch about the object's centre,
+// 2 / -1.5 / 1 cm of shift) applied to the mesh: the own backend must return its inverse
+// within 0.3 degrees and 3 mm (the surface samples are 1-2 cm apart, so this is sub-sample
+// accuracy), in at most the configured 30 iterations, with the early stop firing; both metrics.
+TEST(Icp, OwnBackendRecoversAKnownSmallRigidTransform) {
+  for (const IcpMetric metric : {IcpMetric::kPointToPoint, IcpMetric::kPointToPlane}) {
+    SCOPED_TRACE(IcpMetricName(metric));
+    const geometry::TriangleMesh truth = ChairLike();
+    const geometry::Vec3 where(-30.0, 45.0, 1.0);  // far from the origin
+    std::vector<geometry::Vec3> target;
+    for (const auto& p : geometry::SampleSurface(truth, 4000, 11).points)
+      target.push_back(p + where);
+    const Eigen::Matrix3d r0 = Rzyx(4.0 * M_PI / 180.0, 1.0 * M_PI / 180.0, 1.5 * M_PI / 180.0);
+    const geometry::Vec3 c = where + geometry::Vec3(0, 0, 0.5);
+    const geometry::Vec3 t0 = c - r0 * c + geometry::Vec3(0.02, -0.015, 0.01);
+    geometry::TriangleMesh moved = truth;
+    moved.Transform(Eigen::Matrix3d::Identity(), where);
+    moved.Transform(r0, t0);
+
+    IcpConfig cfg;
+    cfg.metric = metric;
+    ASSERT_EQ(cfg.backend, IcpBackend::kOwn);
+    ASSERT_LE(cfg.max_iterations, 30);
+    const IcpResult res = AlignMeshToPoints(moved, target, cfg);
+    ASSERT_TRUE(res.ran) << res.note;
+    EXPECT_TRUE(res.accepted) << res.note;
+    EXPECT_TRUE(res.converged);
+    EXPECT_GE(res.iterations, 2);
+    EXPECT_LE(res.iterations, cfg.max_iterations);
+    EXPECT_GT(res.correspondences, res.source_points / 2);
+    // Composed with the known motion, the result must be the identity.
+    const Eigen::Matrix3d r_err = res.transform.block<3, 3>(0, 0) * r0;
+    const geometry::Vec3 t_err =
+        res.transform.block<3, 3>(0, 0) * t0 + res.transform.block<3, 1>(0, 3);
+    const double angle_deg = Eigen::AngleAxisd(r_err).angle() * 180.0 / M_PI;
+    EXPECT_LT(angle_deg, 0.3);
+    // Translation error measured at the object (the rotation error moves points too).
+    const geometry::Vec3 at_centre = r_err * c + t_err - c;
+    EXPECT_LT(at_centre.norm(), 0.003) << at_centre.transpose();
+    EXPECT_NEAR(res.yaw, -4.0 * M_PI / 180.0, 0.3 * M_PI / 180.0);
+    // Mean squared pair distance: bounded by the target's sample spacing (~2 cm for 4000 samples
+    // on this ~1.5 m^2 surface), not zero.
+    EXPECT_LT(res.fitness, 0.015 * 0.015);
+    std::printf("angle error %.4f deg, centre error %.2f mm, %d iterations, rms %.4f m\n",
+                angle_deg, 1e3 * at_centre.norm(), res.iterations, std::sqrt(res.fitness));
+  }
+}
+
+// Point sets that are exact rigid copies: ICP converges to the motion to numerical precision.
+TEST(Icp, AlignPointsIsExactOnARigidCopy) {
+  const std::vector<geometry::Vec3> target = geometry::SampleSurface(ChairLike(), 1500, 3).points;
+  const Eigen::Matrix3d r0 = Rzyx(-0.05, 0.02, -0.01);
+  const geometry::Vec3 t0(0.01, 0.005, -0.008);
+  std::vector<geometry::Vec3> source;
+  for (const auto& p : target) source.push_back(r0 * p + t0);
+  IcpConfig cfg;
+  cfg.max_correspondence = 0.1;
+  cfg.relative_rms_change = 0;  // stop on the step size only
+  cfg.max_iterations = 60;
+  const IcpResult res = AlignPoints(source, target, cfg);
+  ASSERT_TRUE(res.ran);
+  EXPECT_TRUE(res.converged);
+  EXPECT_LT((res.transform.block<3, 3>(0, 0) * r0 - Eigen::Matrix3d::Identity()).norm(), 1e-6);
+  EXPECT_LT((res.transform.block<3, 3>(0, 0) * t0 + res.transform.block<3, 1>(0, 3)).norm(), 1e-6);
+  EXPECT_LT(res.fitness, 1e-12);
+  EXPECT_EQ(res.correspondences, static_cast<int>(source.size()));
+}
+
+TEST(Icp, NoPairsWithinTheDistanceLeavesTheIdentity) {
+  const std::vector<geometry::Vec3> target = geometry::SampleSurface(ChairLike(), 500, 3).points;
+  std::vector<geometry::Vec3> source;
+  for (const auto& p : target) source.push_back(p + geometry::Vec3(1.0, 0, 0));
+  const IcpResult res = AlignPoints(source, target, IcpConfig());
+  EXPECT_EQ(res.iterations, 0);
+  EXPECT_TRUE(res.transform.isIdentity());
+  EXPECT_FALSE(res.note.empty());
+}
+
+TEST(Icp, BackendNamesRoundTrip) {
+  EXPECT_EQ(ParseIcpBackend(IcpBackendName(IcpBackend::kOwn)), IcpBackend::kOwn);
+  EXPECT_EQ(ParseIcpBackend(IcpBackendName(IcpBackend::kPcl)), IcpBackend::kPcl);
+  EXPECT_THROW(ParseIcpBackend("open3d"), InvalidArgument);
+  EXPECT_EQ(ParseIcpMetric(IcpMetricName(IcpMetric::kPointToPlane)), IcpMetric::kPointToPlane);
+  EXPECT_EQ(ParseIcpMetric(IcpMetricName(IcpMetric::kPointToPoint)), IcpMetric::kPointToPoint);
+  EXPECT_THROW(ParseIcpMetric("plane"), InvalidArgument);
+  IcpConfig c;
+  c.relative_rms_change = 1.0;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
 }
 
 TEST(Icp, NothingToAlignIsReportedNotThrown) {

@@ -2,6 +2,7 @@
 // the configuration.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -224,6 +225,10 @@ TEST(ReconstructorConfig, ModesAndPresetsRoundTripByName) {
   }
   EXPECT_THROW(ParseReconstructionMode("generate"), InvalidArgument);
   EXPECT_THROW(ParseReconstructionPreset("quick"), InvalidArgument);
+  for (auto r : {ScoreRanking::kStage2, ScoreRanking::kCombined}) {
+    EXPECT_EQ(ParseScoreRanking(ScoreRankingName(r)), r);
+  }
+  EXPECT_THROW(ParseScoreRanking("sqrt"), InvalidArgument);
 }
 
 void ExpectKey(const ReconstructorConfig& c, const std::string& key) {
@@ -262,9 +267,18 @@ TEST(ReconstructorConfig, ValidateNamesTheBadKey) {
   c.pool.clear();
   c.mode = ReconstructionMode::kRetrieval;
   ExpectKey(c, "pool");
+  c = ok;
+  c.decoded_mesh_scale = 0.5;
+  ExpectKey(c, "decoded_mesh_scale");
+  c.decoded_mesh_scale = std::nan("");
+  ExpectKey(c, "decoded_mesh_scale");
+  c = ok;
+  c.icp.relative_rms_change = -1;
+  ExpectKey(c, "icp.relative_rms_change");
   const std::string yaml = ok.ToYaml();
   for (const char* key : {"mode: generation", "preset: accurate", "score_threshold: 0.05",
-                          "max_correspondence: 0.04", "nms_iou: 0.3"}) {
+                          "max_correspondence: 0.04", "nms_iou: 0.3", "backend: own",
+                          "score: ", "decoded_mesh_scale: "}) {
     EXPECT_NE(yaml.find(key), std::string::npos) << key;
   }
 }

@@ -30,6 +30,14 @@ enum class ReconstructionPreset { kFast, kAccurate };
 const char* ReconstructionPresetName(ReconstructionPreset preset);  // "fast", "accurate"
 ReconstructionPreset ParseReconstructionPreset(const std::string& name);
 
+// The detection score that the filter, NMS and the output use (section 3.6 uses stage 2's).
+enum class ScoreRanking {
+  kStage2,    // stage 2's confidence (sigmoid)
+  kCombined,  // sqrt(stage-1 proposal score x stage-2 confidence)
+};
+const char* ScoreRankingName(ScoreRanking r);  // "stage2", "combined"
+ScoreRanking ParseScoreRanking(const std::string& name);
+
 struct ReconstructorConfig {
   // Models (weights; each card model.yaml beside them). An empty pool = none (generation only).
   std::string stage1_model = "models/stage1/stage1.pt";
@@ -50,6 +58,12 @@ struct ReconstructorConfig {
   double score_threshold = 0.05;  // keep sigmoid(score) > threshold, [0, 1)
   int min_points = 100;           // keep proposals with > min_points points (>= 0)
   double nms_iou = 0.3;           // point-IoU NMS drops IoU > nms_iou, [0, 1]
+  ScoreRanking score = ScoreRanking::kStage2;
+
+  // Decoded (generation / projection) meshes are placed by v -> Rz(heading)(v * size / 2 *
+  // decoded_mesh_scale) + centre. 1 = the reference (section 6.4; the decoded mesh fills
+  // [-s, s], s = 1 - 1/32, so it spans 96.9 % of the box); 1 / s fills the box. (0.5, 2].
+  double decoded_mesh_scale = 1.0;
 
   IcpConfig icp;
 

@@ -28,6 +28,7 @@ struct Stage2Detection {
   int proposal = -1;  // index into the proposals given
   int cad_class = -1;
   double score = 0;           // stage-2 confidence (sigmoid)
+  double stage1_score = 0;    // the proposal's stage-1 score
   geometry::OrientedBox box;  // decoded (input frame of the points)
   Eigen::VectorXf code;       // [mu, logvar], 2 * latent_dim
   ProposalFrame frame;        // canonical frame of the proposal
