@@ -37,7 +37,7 @@ struct ReconstructArgs {
   double scale = 1.0;
   bool no_icp = false;
   std::string icp_backend = "own";
-  std::string score = "stage2";
+  std::string score = "combined";
   std::string icp_metric = "point_to_point";
   bool no_box_residual = false;
   bool single_scale = false;
@@ -198,7 +198,7 @@ void SetupReconstruct(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--nms", c.nms_iou, "point-IoU NMS threshold")->capture_default_str();
   app.add_option("--score", a->score,
-                 "detection score: stage2 (confidence) or combined (sqrt(stage-1 x stage-2))")
+                 "detection score: combined (sqrt(stage-1 x stage-2)) or stage2 (the reference)")
       ->capture_default_str();
   app.add_option("--decoded-mesh-scale", c.decoded_mesh_scale,
                  "decoded meshes span size/2 x this (1 = reference; 1.032 = fill the box)")
