@@ -53,8 +53,8 @@ double ValueNoise(const Vec3& p, std::uint64_t salt) {
   return v;
 }
 
-Color Shade(const PlacedObject& obj, std::uint64_t salt, const Vec3& p, const Vec3& n,
-            const Vec3& view_dir, Rng* rng) {
+Color Shade(const PlacedObject& obj, const Vec3& albedo, std::uint64_t salt, const Vec3& p,
+            const Vec3& n, const Vec3& view_dir, Rng* rng) {
   const Material& m = obj.material;
   const double tex =
       1.0 + m.texture_amplitude * (ValueNoise(p / m.texture_scale, salt) +
@@ -63,7 +63,7 @@ Color Shade(const PlacedObject& obj, std::uint64_t salt, const Vec3& p, const Ve
   const double shade = 0.45 + 0.4 * std::max(0.0, n.dot(kLight)) + 0.2 * std::abs(n.dot(view_dir));
   Color c;
   for (int k = 0; k < 3; ++k) {
-    double v = m.albedo[k] * tex * shade;
+    double v = albedo[k] * tex * shade;
     v = std::pow(std::clamp(v, 0.0, 1.0), 1.0 / 2.2) * 255.0 + rng->Normal(0.0, 2.0);
     c[k] = static_cast<std::uint8_t>(std::clamp(std::lround(v), 0L, 255L));
   }
@@ -109,7 +109,10 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
   for (const auto& o : room.objects) {
     Vec3 target = o.material.albedo;
     double gloss = 0;
-    switch (o.role) {
+    const bool textured = !o.mesh.vertex_colors.empty();  // real furniture keeps its texture
+    switch (textured ? ObjectRole::kCeiling : o.role) {
+      case ObjectRole::kCeiling:
+        break;
       case ObjectRole::kWall:
         target = (rng.Bernoulli(0.25) ? accent : paint) * std::exp(rng.Normal(0, 0.05));
         break;
@@ -361,7 +364,9 @@ class EmbreeScene {
   EmbreeScene& operator=(const EmbreeScene&) = delete;
 
   // Returns the object index hit (or -1), the distance and the unit geometric normal.
-  int Cast(const Vec3& o, const Vec3& d, double tfar, double* t, Vec3* n) const {
+  // `prim` / (`bu`, `bv`): the triangle hit and the barycentric weights of its 2nd and 3rd vertex.
+  int Cast(const Vec3& o, const Vec3& d, double tfar, double* t, Vec3* n, int* prim, double* bu,
+           double* bv) const {
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh;
@@ -384,6 +389,9 @@ class EmbreeScene {
     *n = Vec3(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
     const double len = n->norm();
     *n = len > 0 ? Vec3(*n / len) : Vec3::UnitZ();
+    *prim = static_cast<int>(rh.hit.primID);
+    *bu = rh.hit.u;
+    *bv = rh.hit.v;
     return static_cast<int>(rh.hit.geomID);
   }
 
@@ -703,7 +711,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
           const Vec3 dw = rot * dcn;
           double t = 0;
           Vec3 n;
-          const int obj = scene.Cast(org, dw, cfg.max_range * dc.norm() * 1.05, &t, &n);
+          int prim = -1;
+          double bu = 0, bv = 0;
+          const int obj =
+              scene.Cast(org, dw, cfg.max_range * dc.norm() * 1.05, &t, &n, &prim, &bu, &bv);
           const double r_drop = rng.Uniform();
           const double r_noise = rng.Normal();
           if (obj < 0) continue;
@@ -719,12 +730,27 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
           if (o.role == ObjectRole::kCeiling) continue;
           const Vec3 hit = org + dw * t;
           if (hit.z() > height_cap) continue;
+          // Albedo: the object's (v2: the scene look's), or for real furniture its own texture
+          // colour interpolated at the hit (sRGB vertex colours -> linear).
+          Vec3 albedo = colour_v2 || cfg.dark_dropout > 0 ? look.albedo[obj] : o.material.albedo;
+          if (!o.mesh.vertex_colors.empty() &&
+              o.mesh.vertex_colors.size() == o.mesh.vertices.size() && prim >= 0 &&
+              prim < static_cast<int>(o.mesh.faces.size())) {
+            const geometry::Vec3i& fv = o.mesh.faces[prim];
+            const double wgt[3] = {1.0 - bu - bv, bu, bv};
+            Vec3 c = Vec3::Zero();
+            for (int k = 0; k < 3; ++k) {
+              const Color& vc = o.mesh.vertex_colors[fv[k]];
+              for (int ch = 0; ch < 3; ++ch) c[ch] += wgt[k] * std::pow(vc[ch] / 255.0, 2.2);
+            }
+            albedo = c.cwiseMax(0.0).cwiseMin(1.0);
+          }
           double tex = 0;
           if (colour_v2 || cfg.dark_dropout > 0) tex = Texture(o.material, salts[obj], hit);
           if (cfg.dark_dropout > 0 || cfg.glossy_dropout > 0) {
             double p2 = 0;
             if (cfg.dark_dropout > 0) {
-              const double lum = Luminance(look.albedo[obj] * tex);
+              const double lum = Luminance(albedo * tex);
               p2 += cfg.dark_dropout * std::clamp(1.0 - lum / cfg.dark_luminance, 0.0, 1.0);
             }
             if (cfg.glossy_dropout > 0 && look.gloss[obj] > 0)
@@ -741,9 +767,9 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
           ret.bin = est_r * (dc * z).cast<float>() + est_t;
           if (colour_v2) {
             const Vec3 nv = n.dot(dw) > 0 ? Vec3(-n) : n;
-            ret.color = ShadeV2(look.albedo[obj], tex, look, frame_gain, pw, nv, &rng);
+            ret.color = ShadeV2(albedo, tex, look, frame_gain, pw, nv, &rng);
           } else {
-            ret.color = Shade(o, salts[obj], pw, n, dw, &rng);
+            ret.color = Shade(o, albedo, salts[obj], pw, n, dw, &rng);
           }
           ret.object = obj;
           ret.u = u;

@@ -339,5 +339,39 @@ TEST(ScannerTest, RealismChangesColoursAndKeepsDefaultsOff) {
   EXPECT_STREQ(ScanDensityName(ScanDensity::kScanNet), "scannet");
 }
 
+TEST(ScannerTest, RealFurnitureVertexColoursReachTheScan) {
+  Room room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 8;
+  // The best-seen furniture object gets a texture.
+  std::vector<int> count(room.objects.size(), 0);
+  for (int o : ScanRoom(room, c, 5).object) ++count[o];
+  int target = -1;
+  for (std::size_t o = 0; o < room.objects.size(); ++o) {
+    if (room.objects[o].role == ObjectRole::kFurniture && (target < 0 || count[o] > count[target]))
+      target = static_cast<int>(o);
+  }
+  ASSERT_GE(target, 0);
+  auto& obj = room.objects[target];
+  // Texture: red on the vertices above the object's middle height, blue below.
+  obj.mesh.vertex_colors.clear();
+  for (const auto& v : obj.mesh.vertices)
+    obj.mesh.vertex_colors.push_back(v.z() > 0 ? geometry::Color(230, 20, 20)
+                                               : geometry::Color(20, 20, 230));
+  const ScanResult scan = ScanRoom(room, c, 5);
+  int red = 0, blue = 0, total = 0;
+  for (std::size_t k = 0; k < scan.points.size(); ++k) {
+    if (scan.object[k] != target) continue;
+    const auto& col = scan.colors[k];
+    red += col[0] > col[1] + 60 && col[0] > col[2] + 60;
+    blue += col[2] > col[0] + 60 && col[2] > col[1] + 60;
+    ++total;
+  }
+  ASSERT_GT(total, 50) << obj.family;
+  // Every point shows the texture (mixed voxels on the red / blue border aside).
+  EXPECT_GT(red + blue, 0.85 * total) << red << " " << blue << " " << total;
+  EXPECT_GT(red, 0);
+}
+
 }  // namespace
 }  // namespace dimr::data
