@@ -9,6 +9,7 @@
 #include <memory>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "dimr/core/allocator.h"
 #include "dimr/ros/node_params.h"
 #include "dimr/ros/pipeline_backend.h"
 #include "dimr/ros/reconstruction_node.h"
@@ -32,6 +33,17 @@ class ReconstructionNodelet : public nodelet::Nodelet {
                      pnh.getNamespace().c_str(), k.c_str());
       NODELET_INFO("dimr: resolved configuration of %s:\n%s", pnh.getNamespace().c_str(),
                    r.resolved.c_str());
+      // LibTorch frees and re-allocates megabyte tensors on every layer call; keep them in the
+      // heap (core/allocator.h) before the models load. Process-wide: in a shared manager the
+      // other nodelets' freed memory is kept too (DIMR_DEFAULT_MALLOC=1 keeps glibc's
+      // defaults).
+      const AllocatorTuning tuning = TuneAllocatorForTensors();
+      NODELET_INFO("dimr: allocator %s",
+                   tuning == AllocatorTuning::kTuned
+                       ? "tuned for tensors (mmap threshold up, no heap trim)"
+                       : (tuning == AllocatorTuning::kUserSettings ? "left to GLIBC_TUNABLES / "
+                                                                     "DIMR_DEFAULT_MALLOC"
+                                                                   : "not glibc: unchanged"));
       auto backend = std::make_unique<PipelineBackend>(r.params.pipeline);
       node_ = std::make_unique<ReconstructionNode>(
           nh, pnh, r.params.node, std::move(backend),
