@@ -49,15 +49,15 @@ TEST(VoxelMeanFilter, DensePlaneGetsOnePointPerOccupiedCell) {
   BackendCloud c;
   for (int i = 0; i <= 200; ++i)
     for (int j = 0; j <= 200; ++j)
-      c.points.emplace_back(2.0f + i * 0.005f, -1.0f + j * 0.005f, 0.7f);
+      c.points.emplace_back(0.01f + i * 0.005f, 0.01f + j * 0.005f, 0.7f);
   ASSERT_EQ(c.points.size(), 40401u);
   const VoxelFilterStats s = VoxelMeanFilter(&c, 0.045);
-  // x - 2 and y + 1 in [0, 1]: cells 0..22 on each axis, one layer in z.
+  // x and y in [0.01, 1.01]: cells 0..22 on each axis (absolute grid), one layer in z.
   EXPECT_EQ(s.output_points, 23u * 23u);
   EXPECT_EQ(c.points.size(), 23u * 23u);
   for (const Eigen::Vector3f& p : c.points) {
-    EXPECT_GE(p.x(), 2.0f - 1e-5f);
-    EXPECT_LE(p.x(), 3.0f + 1e-5f);
+    EXPECT_GE(p.x(), 0.01f - 1e-5f);
+    EXPECT_LE(p.x(), 1.01f + 1e-5f);
     EXPECT_NEAR(p.z(), 0.7f, 1e-6f);
   }
   // A second pass at the same size keeps every cell (idempotent up to the grid shift).

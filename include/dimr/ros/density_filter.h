@@ -4,7 +4,8 @@
 // unfused, and the networks then find a quarter of the objects they find on the same room at
 // training density (docs/ros.md, "Input density"). The node therefore replaces every occupied
 // cell of `voxel_size` by the mean of its points (colours averaged, normals averaged and
-// re-normalised). ROS-free.
+// re-normalised) - pipeline::VoxelMeanDownsample, the same function `dimr real eval --voxel`
+// uses. ROS-free.
 #pragma once
 
 #include <cstddef>
@@ -19,11 +20,12 @@ struct VoxelFilterStats {
   bool applied = false;  // false: voxel_size 0, an empty cloud, or an extent beyond 2^21 cells
 };
 
-// Replaces `cloud` by its voxel means (cells [i, i+1) * voxel_size in the cloud's frame, in the
-// order of each cell's first point: deterministic). Colours / normals are averaged when present
-// (a normal whose mean is shorter than 1e-6 becomes zero = unknown). Leaves the cloud as it is
-// when voxel_size <= 0, when the cloud is empty, or when it spans more than 2^21 cells along an
-// axis (the pipeline then refuses it by its own max_extent). Expects finite coordinates.
+// Replaces `cloud` by its voxel means (pipeline::VoxelMeanDownsample: cells [i, i+1) *
+// voxel_size in the cloud's frame, in the order of each cell's first point: deterministic). Colours
+// / normals are averaged when present (a normal whose mean is shorter than 1e-6 becomes zero =
+// unknown). Leaves the cloud as it is when voxel_size <= 0, when the cloud is empty, or when it
+// spans more than 2^21 cells along an axis (the pipeline then refuses it by its own max_extent).
+// Expects finite coordinates.
 VoxelFilterStats VoxelMeanFilter(BackendCloud* cloud, double voxel_size);
 
 }  // namespace dimr::ros1
