@@ -82,6 +82,25 @@ VoxelDownsample VoxelMeanDownsample(const PointCloudInput& input, double voxel) 
   return out;
 }
 
+DensityNormalisation NormaliseDensity(const PointCloudInput& input, double voxel,
+                                      double min_points_per_cell) {
+  if (!(min_points_per_cell >= 1.0) || !std::isfinite(min_points_per_cell)) {
+    throw InvalidArgument(Who(input) + ": min_points_per_cell must be >= 1, got " +
+                          std::to_string(min_points_per_cell));
+  }
+  DensityNormalisation out;
+  if (input.points.empty()) {
+    out.cloud = input;
+    return out;
+  }
+  VoxelDownsample reduced = VoxelMeanDownsample(input, voxel);
+  out.points_per_cell =
+      static_cast<double>(input.points.size()) / static_cast<double>(reduced.cloud.points.size());
+  out.applied = out.points_per_cell > min_points_per_cell;
+  out.cloud = out.applied ? std::move(reduced.cloud) : input;
+  return out;
+}
+
 std::vector<int> ExpandCellLabels(const std::vector<int>& cell_labels,
                                   const std::vector<int>& cell_of_point) {
   std::vector<int> out(cell_of_point.size());

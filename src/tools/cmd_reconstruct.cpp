@@ -17,6 +17,7 @@
 #include "dimr/data/labels.h"
 #include "dimr/geometry/error.h"
 #include "dimr/pipeline/reconstructor.h"
+#include "dimr/pipeline/voxel_downsample.h"
 #include "tools/command_registry.h"
 #include "tools/reconstruct_io.h"
 
@@ -35,6 +36,7 @@ struct ReconstructArgs {
   dimr::pipeline::ReconstructorConfig config;
   std::string crop;  // xmin,ymin,zmin,xmax,ymax,zmax
   double scale = 1.0;
+  std::string input_voxel = "auto";  // voxel-mean filter: auto | 0 (off) | size in metres
   bool no_icp = false;
   std::string icp_backend = "own";
   std::string score = "combined";
@@ -67,7 +69,18 @@ std::vector<double> ParseNumbers(const std::string& s, std::size_t n, const std:
   return out;
 }
 
+// Stage 1's training density: SynthScan mesh density, one fused point per 4.5 cm cell.
+constexpr double kTrainingVoxel = 0.045;
+constexpr double kAutoPointsPerCell = 1.5;
+
 void RunReconstruct(ReconstructArgs& a) {
+  const bool auto_voxel = a.input_voxel == "auto";
+  const double voxel =
+      auto_voxel ? kTrainingVoxel : ParseNumbers(a.input_voxel, 1, "--input-voxel")[0];
+  if (!(voxel >= 0) || !std::isfinite(voxel)) {
+    throw dimr::InvalidArgument("--input-voxel: expected auto, 0 or a size in metres, got '" +
+                                a.input_voxel + "'");
+  }
   dimr::pipeline::ReconstructorConfig& cfg = a.config;
   // One mode, or several (comma-separated): the networks run once per scene, the other modes
   // re-mesh that result (Reconstructor::Remesh) into DIR/<mode>/.
@@ -115,7 +128,20 @@ void RunReconstruct(ReconstructArgs& a) {
       if (a.scale != 1.0) {
         for (auto& p : s.cloud.points) p *= a.scale;
       }
-      const auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
+      auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
+      if (voxel > 0) {
+        const std::size_t before = input.points.size();
+        // auto: only clouds denser than the training density; a size: always.
+        auto d =
+            dimr::pipeline::NormaliseDensity(input, voxel, auto_voxel ? kAutoPointsPerCell : 1.0);
+        if (d.applied) {
+          input = std::move(d.cloud);
+          if (!a.quiet) {
+            std::printf("%s: %zu points (%.1f per %.3f m cell) -> %zu voxel means\n",
+                        s.name.c_str(), before, d.points_per_cell, voxel, input.points.size());
+          }
+        }
+      }
       const dimr::pipeline::SceneResult r = rec.Reconstruct(input);
       auto out_of = [&](dimr::pipeline::ReconstructionMode m) {
         return modes.size() == 1
@@ -205,6 +231,12 @@ void SetupReconstruct(CLI::App& app) {
       ->capture_default_str();
   app.add_option("--max-points", c.max_points, "refuse larger clouds")->capture_default_str();
   app.add_option("--crop", a->crop, "keep points in xmin,ymin,zmin,xmax,ymax,zmax (input frame)");
+  app.add_option("--input-voxel", a->input_voxel,
+                 "replace the input by its voxel means first: auto = at 0.045 m when the cloud "
+                 "holds more than 1.5 points per 0.045 m cell (raw accumulated clouds, real "
+                 "scans; SynthScan mesh density ~1 is left as it is), 0 = off, or a size in m "
+                 "(always; docs/results.md 'Input density')")
+      ->capture_default_str();
   app.add_option("--scale", a->scale, "multiply coordinates first (0.001 for millimetres)")
       ->capture_default_str();
   app.add_option("--threads", c.threads, "network threads (0 = default)")->capture_default_str();

@@ -56,5 +56,31 @@ TEST(VoxelMeanDownsample, DensityOfAGridAndBadInput) {
   EXPECT_THROW(VoxelMeanDownsample(bad, 0.01), InvalidArgument);
 }
 
+TEST(NormaliseDensity, ReducesDenseCloudsOnlyAndReportsTheRatio) {
+  // 1 cm grid: 3600 points in 196 cells of 4.5 cm -> 18.4 points per cell: reduced.
+  PointCloudInput dense;
+  for (int i = 0; i < 60; ++i)
+    for (int j = 0; j < 60; ++j)
+      dense.points.emplace_back(0.01f * i + 0.005f, 0.01f * j + 0.005f, 0);
+  const DensityNormalisation a = NormaliseDensity(dense, 0.045, 1.5);
+  EXPECT_TRUE(a.applied);
+  EXPECT_NEAR(a.points_per_cell, 3600.0 / 196.0, 1e-9);
+  EXPECT_EQ(a.cloud.points.size(), 196u);
+  // 5 cm grid (coarser than the cell): one point per occupied cell: left as it is.
+  PointCloudInput sparse;
+  for (int i = 0; i < 20; ++i)
+    for (int j = 0; j < 20; ++j) sparse.points.emplace_back(0.05f * i + 0.01f, 0.05f * j, 0.3f);
+  const DensityNormalisation b = NormaliseDensity(sparse, 0.045, 1.5);
+  EXPECT_FALSE(b.applied);
+  EXPECT_NEAR(b.points_per_cell, 1.0, 1e-9);
+  EXPECT_EQ(b.cloud.points, sparse.points);
+  // The same dense grid with a threshold above its ratio is kept.
+  EXPECT_FALSE(NormaliseDensity(dense, 0.045, 20.0).applied);
+  // Empty: nothing to do; bad thresholds are errors.
+  EXPECT_FALSE(NormaliseDensity(PointCloudInput{}, 0.045, 1.5).applied);
+  EXPECT_THROW(NormaliseDensity(dense, 0.045, 0.5), InvalidArgument);
+  EXPECT_THROW(NormaliseDensity(dense, 0.0, 1.5), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::pipeline

@@ -23,6 +23,19 @@ struct VoxelDownsample {
 // another count than the points, or an extent beyond 2^21 cells along an axis.
 VoxelDownsample VoxelMeanDownsample(const PointCloudInput& input, double voxel);
 
+// Density normalisation: the voxel means when the input is denser than stage 1's training
+// density, i.e. holds more than `min_points_per_cell` points per occupied cell of `voxel` on
+// average (SynthScan mesh density: ~1; a robot's accumulated map cloud or a real ScanNet mesh:
+// 4-15); otherwise the input unchanged. `applied` says which; `points_per_cell` is the measured
+// ratio either way. Throws as VoxelMeanDownsample and for min_points_per_cell < 1.
+struct DensityNormalisation {
+  PointCloudInput cloud;
+  bool applied = false;
+  double points_per_cell = 0.0;
+};
+DensityNormalisation NormaliseDensity(const PointCloudInput& input, double voxel,
+                                      double min_points_per_cell);
+
 // Per-point labels of the reduced cloud back on the input points: out[i] = cell_labels[cell_of
 // _point[i]]. Throws dimr::InvalidArgument when a cell index is out of range.
 std::vector<int> ExpandCellLabels(const std::vector<int>& cell_labels,
