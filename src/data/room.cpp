@@ -517,7 +517,8 @@ class Composer {
     o.symmetric = m.symmetric_about_z;
     o.model = std::make_shared<const CadModel>(m);
     o.mesh.vertex_normals.clear();
-    o.mesh.attributes.clear();  // vertex colours stay: real furniture has its own (procedural: none)
+    // Vertex colours stay: real furniture has its own (procedural models have none).
+    o.mesh.attributes.clear();
     o.scale = size;
     o.material = MakeMaterial(&rng_, o.role, o.rfs_class);
     if (!m.mesh.vertex_colors.empty()) {  // real furniture: its own (mean) colour

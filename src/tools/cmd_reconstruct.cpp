@@ -69,14 +69,10 @@ std::vector<double> ParseNumbers(const std::string& s, std::size_t n, const std:
   return out;
 }
 
-// Stage 1's training density: SynthScan mesh density, one fused point per 4.5 cm cell.
-constexpr double kTrainingVoxel = 0.045;
-constexpr double kAutoPointsPerCell = 1.5;
-
 void RunReconstruct(ReconstructArgs& a) {
   const bool auto_voxel = a.input_voxel == "auto";
-  const double voxel =
-      auto_voxel ? kTrainingVoxel : ParseNumbers(a.input_voxel, 1, "--input-voxel")[0];
+  const double voxel = auto_voxel ? dimr::pipeline::kTrainingVoxelSize
+                                  : ParseNumbers(a.input_voxel, 1, "--input-voxel")[0];
   if (!(voxel >= 0) || !std::isfinite(voxel)) {
     throw dimr::InvalidArgument("--input-voxel: expected auto, 0 or a size in metres, got '" +
                                 a.input_voxel + "'");
@@ -132,8 +128,8 @@ void RunReconstruct(ReconstructArgs& a) {
       if (voxel > 0) {
         const std::size_t before = input.points.size();
         // auto: only clouds denser than the training density; a size: always.
-        auto d =
-            dimr::pipeline::NormaliseDensity(input, voxel, auto_voxel ? kAutoPointsPerCell : 1.0);
+        auto d = dimr::pipeline::NormaliseDensity(
+            input, voxel, auto_voxel ? dimr::pipeline::kDenserThanTrainingPointsPerCell : 1.0);
         if (d.applied) {
           input = std::move(d.cloud);
           if (!a.quiet) {

@@ -276,9 +276,9 @@ TEST(ReconstructorConfig, ValidateNamesTheBadKey) {
   c.icp.relative_rms_change = -1;
   ExpectKey(c, "icp.relative_rms_change");
   const std::string yaml = ok.ToYaml();
-  for (const char* key : {"mode: generation", "preset: accurate", "score_threshold: 0.05",
-                          "max_correspondence: 0.04", "nms_iou: 0.3", "backend: own",
-                          "score: ", "decoded_mesh_scale: "}) {
+  for (const char* key :
+       {"mode: generation", "preset: accurate", "score_threshold: 0.05", "max_correspondence: 0.04",
+        "nms_iou: 0.3", "backend: own", "score: ", "decoded_mesh_scale: "}) {
     EXPECT_NE(yaml.find(key), std::string::npos) << key;
   }
 }

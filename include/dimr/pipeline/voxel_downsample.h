@@ -11,6 +11,12 @@
 
 namespace dimr::pipeline {
 
+// Stage 1's training density: SynthScan `mesh` keeps one fused point per occupied cell of this
+// edge (m). The CLI's `--input-voxel auto` and the node's `input_voxel_size` default use it.
+inline constexpr double kTrainingVoxelSize = 0.045;
+// `auto` normalises a cloud holding more points than this per occupied training cell.
+inline constexpr double kDenserThanTrainingPointsPerCell = 1.5;
+
 struct VoxelDownsample {
   PointCloudInput cloud;           // one point per occupied cell, in order of first appearance
   std::vector<int> cell_of_point;  // per input point: its index in `cloud`

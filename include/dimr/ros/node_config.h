@@ -8,6 +8,7 @@
 #include <array>
 #include <string>
 
+#include "dimr/pipeline/voxel_downsample.h"
 #include "dimr/ros/param_table.h"
 
 namespace dimr::ros1 {
@@ -53,7 +54,7 @@ struct NodeConfig {
   std::string input_mode = "accumulated";  // accumulated | scans
   double min_process_interval = 0.0;       // s between processed clouds (message time)
   int max_input_points = 2000000;          // larger clouds are subsampled (uniform stride)
-  double input_voxel_size = 0.045;         // m, voxel-mean density normalisation (0 = off)
+  double input_voxel_size = pipeline::kTrainingVoxelSize;  // m, voxel-mean filter (0 = off)
   std::array<double, 3> crop_min = {-1000, -1000, -1000};  // m in fixed_frame
   std::array<double, 3> crop_max = {1000, 1000, 1000};
   double max_publish_rate = 2.0;  // Hz, markers / scene publication cap
