@@ -31,14 +31,8 @@ BAG=$(ls "$OUT"/synth/bags/*.bag | head -n 1)
 GT=$(ls "$OUT"/synth/scans/*/*.synthscan.json | head -n 1)
 START=$(date +%s)
 
-set +u
-# shellcheck disable=SC1091
-source build/devel/setup.bash
-set -u
-export ROS_HOME="$REPO/build/ros_home" ROS_HOSTNAME=localhost
-mkdir -p "$ROS_HOME"
-PORT=$((20000 + RANDOM % 20000))
-export ROS_MASTER_URI="http://localhost:$PORT"
+# shellcheck source=scripts/ros_env.sh
+source scripts/ros_env.sh
 DISP=$((50 + RANDOM % 400))
 while [ -e "/tmp/.X$DISP-lock" ]; do DISP=$((DISP + 1)); done
 

@@ -22,14 +22,8 @@ if [ -z "$BAG" ]; then
   fi
   BAG="$OUT/synth/bags/scene8000_00.bag"
 fi
-set +u
-# shellcheck disable=SC1091
-source build/devel/setup.bash
-set -u
-export ROS_HOME="$REPO/build/ros_home" ROS_HOSTNAME=localhost
-mkdir -p "$ROS_HOME"
-PORT=$((20000 + RANDOM % 20000))
-export ROS_MASTER_URI="http://localhost:$PORT"
+# shellcheck source=scripts/ros_env.sh
+source scripts/ros_env.sh
 LPID=""
 cleanup() {
   if [ -n "$LPID" ]; then kill -INT "$LPID" 2> /dev/null || true; wait "$LPID" 2> /dev/null || true; fi
