@@ -96,8 +96,10 @@ ReconstructionNode::ReconstructionNode(ros::NodeHandle nh, ros::NodeHandle pnh,
 
   diagnostics_.setHardwareID("dimr");
   diagnostics_.add("reconstruction", this, &ReconstructionNode::Diagnose);
-  diag_timer_ = nh_.createWallTimer(
-      ros::WallDuration(0.5), [this](const ros::WallTimerEvent&) { diagnostics_.force_update(); });
+  diag_timer_ = nh_.createWallTimer(ros::WallDuration(0.5), [this](const ros::WallTimerEvent&) {
+    const CallbackGate::Entry entry(gate_);
+    if (entry) diagnostics_.force_update();
+  });
   publish_timer_ = nh_.createWallTimer(ros::WallDuration(1.0 / config_.max_publish_rate),
                                        &ReconstructionNode::PublishPending, this);
 
@@ -124,19 +126,29 @@ ReconstructionNode::ReconstructionNode(ros::NodeHandle nh, ros::NodeHandle pnh,
 
 ReconstructionNode::~ReconstructionNode() {
   stop_ = true;
-  queue_.Stop();
-  if (worker_.joinable()) worker_.join();
+  // First: no callback of a spinner thread may still run (or start) while members go away.
+  // (roscpp's stop / shutdown below do not wait for a callback already running; see
+  // callback_gate.h.) Then nothing new is dispatched, and the worker ends.
+  gate_.CloseAndWait();
+  cloud_sub_.shutdown();
   tf_timer_.stop();
   publish_timer_.stop();
   diag_timer_.stop();
+  services_.clear();
+  queue_.Stop();
+  if (worker_.joinable()) worker_.join();
   tf_filter_.reset();
-  cloud_sub_.shutdown();
+  // A callback that roscpp had dispatched just before the stops above meets the closed gate and
+  // returns; wait for it too before the members (the gate included) are destroyed.
+  gate_.CloseAndWait();
 }
 
 // ---------------------------------------------------------------------------------------------
 // Input.
 
 void ReconstructionNode::OnRaw(const sensor_msgs::PointCloud2ConstPtr& msg) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   const auto t0 = std::chrono::steady_clock::now();
   {
     std::lock_guard<std::mutex> lock(stats_mutex_);
@@ -194,6 +206,8 @@ std::string ReconstructionNode::TfProblem(const std_msgs::Header& header,
 
 void ReconstructionNode::OnTfFailure(const sensor_msgs::PointCloud2ConstPtr& msg,
                                      tf2_ros::filter_failure_reasons::FilterFailureReason reason) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   {
     std::lock_guard<std::mutex> lock(waiting_mutex_);
     if (waiting_.erase(msg.get()) == 0) return;  // already reported as timed out
@@ -211,6 +225,8 @@ void ReconstructionNode::OnTfFailure(const sensor_msgs::PointCloud2ConstPtr& msg
 }
 
 void ReconstructionNode::CheckTfTimeouts(const ros::WallTimerEvent&) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   std::vector<const sensor_msgs::PointCloud2*> expired;
   const ros::WallTime now = ros::WallTime::now();
   {
@@ -251,6 +267,8 @@ void ReconstructionNode::CheckTfTimeouts(const ros::WallTimerEvent&) {
 }
 
 void ReconstructionNode::OnCloud(const sensor_msgs::PointCloud2ConstPtr& msg) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   {
     std::lock_guard<std::mutex> lock(waiting_mutex_);
     if (waiting_.erase(msg.get()) == 0) return;  // timed out earlier: reported, not processed
@@ -439,6 +457,8 @@ void ReconstructionNode::Reconstruct(const BackendCloud& cloud, const std_msgs::
 }
 
 void ReconstructionNode::PublishPending(const ros::WallTimerEvent&) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (pending_publish_) PublishLocked();
 }
@@ -452,6 +472,8 @@ void ReconstructionNode::PublishLocked() {
 }
 
 void ReconstructionNode::OnMarkerSubscriber(const ros::SingleSubscriberPublisher& pub) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return;
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (markers_.size() > 0) pub.publish(markers_.Snapshot());
 }
@@ -467,6 +489,8 @@ void ReconstructionNode::PublishSegmentedCloud() {
 // Services (none of them waits for inference).
 
 bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   std::unique_lock<std::mutex> lock(state_mutex_);
   res.previous_mode = static_cast<std::uint8_t>(pending_mode_ >= 0 ? pending_mode_ : mode_);
   res.active_mode = res.previous_mode;
@@ -518,6 +542,8 @@ bool ReconstructionNode::SetModeCb(SetMode::Request& req, SetMode::Response& res
 }
 
 bool ReconstructionNode::ResetCb(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   std::lock_guard<std::mutex> lock(state_mutex_);
   ++epoch_;
   queue_.Clear();
@@ -553,6 +579,8 @@ bool ReconstructionNode::ResetCb(std_srvs::Trigger::Request&, std_srvs::Trigger:
 
 bool ReconstructionNode::ReprocessCb(std_srvs::Trigger::Request&,
                                      std_srvs::Trigger::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (!last_msg_) {
     res.success = false;
@@ -572,12 +600,16 @@ bool ReconstructionNode::ReprocessCb(std_srvs::Trigger::Request&,
 }
 
 bool ReconstructionNode::GetSceneCb(GetScene::Request&, GetScene::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   std::lock_guard<std::mutex> lock(state_mutex_);
   res.scene = scene_;
   return true;
 }
 
 bool ReconstructionNode::GetInstanceCb(GetInstance::Request& req, GetInstance::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   std::lock_guard<std::mutex> lock(state_mutex_);
   res.found = false;
   for (std::size_t i = 0; i < scene_.instances.size(); ++i) {
@@ -592,6 +624,8 @@ bool ReconstructionNode::GetInstanceCb(GetInstance::Request& req, GetInstance::R
 }
 
 bool ReconstructionNode::GetPoolModelCb(GetPoolModel::Request& req, GetPoolModel::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   res.found = false;
   try {
     geometry::TriangleMesh mesh;
@@ -604,6 +638,8 @@ bool ReconstructionNode::GetPoolModelCb(GetPoolModel::Request& req, GetPoolModel
 }
 
 bool ReconstructionNode::SaveSceneCb(SaveScene::Request& req, SaveScene::Response& res) {
+  const CallbackGate::Entry entry(gate_);
+  if (!entry) return false;
   SceneMeshes scene;
   {
     std::lock_guard<std::mutex> lock(state_mutex_);

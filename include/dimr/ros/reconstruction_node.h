@@ -27,6 +27,7 @@
 #include "dimr/SaveScene.h"
 #include "dimr/SceneMeshes.h"
 #include "dimr/SetMode.h"
+#include "dimr/ros/callback_gate.h"
 #include "dimr/ros/cloud_conversion.h"
 #include "dimr/ros/instance_tracker.h"
 #include "dimr/ros/job_queue.h"
@@ -44,7 +45,8 @@ class ReconstructionNode {
   // `initial_k` are the backend's current mode and projection k.
   ReconstructionNode(ros::NodeHandle nh, ros::NodeHandle pnh, const NodeConfig& config,
                      std::unique_ptr<SceneBackend> backend, ShapeMode initial_mode, int initial_k);
-  // Shutdown order: worker, then the MessageFilter, then the subscriber.
+  // Shutdown order: in-flight callbacks (gate_), the worker, timers, the MessageFilter, the
+  // subscriber.
   ~ReconstructionNode();
 
   ReconstructionNode(const ReconstructionNode&) = delete;
@@ -154,6 +156,10 @@ class ReconstructionNode {
   std::size_t instances_ = 0, map_scans_ = 0, map_leaves_ = 0, map_bytes_ = 0;
   std::string mode_text_;
   std::string compute_info_;  // backend's compute path (diagnostics `compute`)
+
+  // Every ROS callback entry point holds an entry; the destructor closes it first. Declared last:
+  // destroyed first, after the destructor body has waited on it.
+  CallbackGate gate_;
 };
 
 }  // namespace dimr::ros1
