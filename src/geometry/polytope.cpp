@@ -288,6 +288,7 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
   box_poly.AddFace({0, 4, 6, 2}, -1);  // x = min
   box_poly.AddFace({1, 3, 7, 5}, -1);  // x = max
 
+  Vec3 lo = box.min, hi = box.max;  // bounding box of the current polytope's vertices
   for (std::size_t i = 0; i < planes.size(); ++i) {
     Vec3 n = planes[i].normal;
     double d = planes[i].offset;
@@ -303,9 +304,22 @@ Polytope IntersectHalfSpaces(const std::vector<HalfSpace>& planes, const Polytop
     const double len = n.norm();
     n /= len;
     d /= len;
+    // A plane that keeps the whole bounding box of the current polytope strictly inside
+    // (beyond the tolerance and the rounding of n.x + d) classifies every vertex as inside:
+    // Clip would cut nothing and relabel nothing. Most planes of a BSP convex are such.
+    double reach = d;
+    for (int a = 0; a < 3; ++a) reach += std::max(n[a] * lo[a], n[a] * hi[a]);
+    if (reach < -tol - 1e-12 * (scale + std::abs(d))) continue;
     const int r = clipper.Clip(*cur_p, *next_p, n, d, tol, static_cast<int>(i));
     if (r == -1) return out;
-    if (r == 1) std::swap(cur_p, next_p);
+    if (r == 1) {
+      std::swap(cur_p, next_p);
+      lo = hi = cur_p->verts[0];
+      for (const Vec3& v : cur_p->verts) {
+        lo = lo.cwiseMin(v);
+        hi = hi.cwiseMax(v);
+      }
+    }
   }
 
   const Poly& cur = *cur_p;

@@ -14,13 +14,14 @@ void CheckInputs(const Eigen::MatrixXf& planes, const std::vector<std::vector<in
     throw InvalidArgument("BSP planes must be P x 4, got " + std::to_string(planes.rows()) + " x " +
                           std::to_string(planes.cols()));
   }
+  const bool all_finite = planes.allFinite();
   for (std::size_t k = 0; k < convexes.size(); ++k) {
     for (int p : convexes[k]) {
       if (p < 0 || p >= planes.rows()) {
         throw InvalidArgument("convex " + std::to_string(k) + " references plane " +
                               std::to_string(p) + " of " + std::to_string(planes.rows()));
       }
-      if (!planes.row(p).allFinite()) {
+      if (!all_finite && !planes.row(p).allFinite()) {
         throw InvalidArgument("plane " + std::to_string(p) + " of convex " + std::to_string(k) +
                               " is not finite");
       }
@@ -49,6 +50,141 @@ void CheckDilation(float dilation) {
     throw InvalidArgument("BSP dilation must be finite and >= 0, got " + std::to_string(dilation));
   }
 }
+
+// An axis-aligned block of grid cells, [lo, hi] per axis (inclusive).
+struct CellRange {
+  int lo[3], hi[3];
+  int Cells() const { return (hi[0] - lo[0] + 1) * (hi[1] - lo[1] + 1) * (hi[2] - lo[2] + 1); }
+};
+
+// The cells of a grid inside one convex, by recursive subdivision of the grid: for a block of
+// cells, the range of every plane's value over the block's cell centres (a linear function:
+// its extremes lie at the corners) says whether the plane is positive nowhere in it (it then
+// adds nothing to any cell's sum and is dropped for the block's sub-blocks) or whether the
+// summed minimum excess already reaches the threshold (no cell of the block is inside). The
+// cells of small blocks are tested one by one with the planes left, in the convex's plane
+// order and with the arithmetic of InsideConvex, so the result is that of testing every cell
+// with every plane, bit for bit. The bounds are computed in double with margins far above the
+// rounding error of the float test, so they only ever keep a cell for the exact test.
+class GridTester {
+ public:
+  GridTester(int grid, float threshold, float dilation)
+      : grid_(grid), threshold_(threshold), dilation_(dilation) {
+    coord_.resize(static_cast<std::size_t>(grid));
+    for (int i = 0; i < grid; ++i) coord_[i] = -1.0f + (2.0f * i + 1.0f) / static_cast<float>(grid);
+    // Each split halves one side: at most 3 * ceil(log2(grid)) + 1 levels (grid <= 256).
+    levels_.resize(3 * 9 + 2);
+  }
+
+  void Run(const Eigen::MatrixXf& planes, const std::vector<int>& ids, const CellRange& range,
+           std::vector<std::uint32_t>* inside) {
+    const std::size_t n = ids.size();
+    a_.resize(n);
+    b_.resize(n);
+    c_.resize(n);
+    d_.resize(n);
+    margin_.resize(n);
+    for (std::size_t j = 0; j < n; ++j) {
+      const int p = ids[j];
+      a_[j] = planes(p, 0);
+      b_[j] = planes(p, 1);
+      c_[j] = planes(p, 2);
+      d_[j] = planes(p, 3);
+      // |float result - exact value| <= ~4 ulp of the summed magnitudes (|x|, |y|, |z| <= 1).
+      margin_[j] = 1e-5 * (std::abs(static_cast<double>(a_[j])) + std::abs(b_[j]) +
+                           std::abs(c_[j]) + std::abs(d_[j]) + std::abs(dilation_)) +
+                   1e-30;
+    }
+    levels_[0].resize(n);
+    for (std::size_t j = 0; j < n; ++j) levels_[0][j] = static_cast<int>(j);
+    out_ = inside;
+    Visit(range, 0);
+  }
+
+ private:
+  static constexpr int kLeafCells = 16;
+
+  void Visit(const CellRange& r, std::size_t depth) {
+    const std::vector<int>& active = levels_[depth];
+    std::vector<int>& kept = levels_[depth + 1];
+    kept.clear();
+    double lo[3], hi[3];
+    for (int a = 0; a < 3; ++a) {
+      lo[a] = coord_[r.lo[a]];
+      hi[a] = coord_[r.hi[a]];
+    }
+    const double base_dil = static_cast<double>(dilation_);
+    double min_sum = 0.0;
+    for (int j : active) {
+      const double a = a_[j], b = b_[j], c = c_[j];
+      const double base = static_cast<double>(d_[j]) - base_dil;
+      const double mn = base + std::min(a * lo[0], a * hi[0]) + std::min(b * lo[1], b * hi[1]) +
+                        std::min(c * lo[2], c * hi[2]);
+      const double mx = base + std::max(a * lo[0], a * hi[0]) + std::max(b * lo[1], b * hi[1]) +
+                        std::max(c * lo[2], c * hi[2]);
+      if (mx <= -margin_[j]) continue;  // float value <= 0 in every cell: adds nothing
+      if (mn > margin_[j]) min_sum += mn - margin_[j];
+      kept.push_back(j);
+    }
+    // Every cell's float sum >= (1 - 1e-4) * min_sum (at most ~1000 roundings of 6e-8 each), so
+    // a block whose summed minimum excess clears the threshold with room to spare has no cell in.
+    if (min_sum > 0.0 && min_sum * (1.0 - 1e-3) >= static_cast<double>(threshold_)) return;
+    if (kept.empty()) {  // no plane positive anywhere: every cell is inside
+      for (int z = r.lo[2]; z <= r.hi[2]; ++z) {
+        for (int y = r.lo[1]; y <= r.hi[1]; ++y) {
+          for (int x = r.lo[0]; x <= r.hi[0]; ++x) out_->push_back(Cell(x, y, z));
+        }
+      }
+      return;
+    }
+    if (r.Cells() <= kLeafCells) {
+      for (int z = r.lo[2]; z <= r.hi[2]; ++z) {
+        for (int y = r.lo[1]; y <= r.hi[1]; ++y) {
+          for (int x = r.lo[0]; x <= r.hi[0]; ++x) {
+            if (Inside(kept, coord_[x], coord_[y], coord_[z])) out_->push_back(Cell(x, y, z));
+          }
+        }
+      }
+      return;
+    }
+    // Split the longest side in two.
+    int axis = 0;
+    for (int a = 1; a < 3; ++a) {
+      if (r.hi[a] - r.lo[a] > r.hi[axis] - r.lo[axis]) axis = a;
+    }
+    const int mid = (r.lo[axis] + r.hi[axis]) / 2;
+    CellRange first = r, second = r;
+    first.hi[axis] = mid;
+    second.lo[axis] = mid + 1;
+    Visit(first, depth + 1);
+    Visit(second, depth + 1);
+  }
+
+  // InsideConvex over the planes `ids` (indices into the convex's arrays).
+  bool Inside(const std::vector<int>& ids, float x, float y, float z) const {
+    float sum = 0.f;
+    for (int j : ids) {
+      const float v = a_[j] * x + b_[j] * y + c_[j] * z + d_[j] - dilation_;
+      if (v > 0.f) {
+        sum += v;
+        if (sum >= threshold_) return false;
+      }
+    }
+    return true;
+  }
+
+  std::uint32_t Cell(int x, int y, int z) const {
+    return static_cast<std::uint32_t>(x + grid_ * (y + grid_ * z));
+  }
+
+  int grid_;
+  float threshold_, dilation_;
+  std::vector<float> coord_;
+  std::vector<float> a_, b_, c_, d_;
+  std::vector<double> margin_;
+  std::vector<std::vector<int>> levels_;  // active planes per recursion depth
+  std::vector<std::uint32_t>* out_ = nullptr;
+};
 
 }  // namespace
 
@@ -99,16 +235,23 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& input_planes,
   if (options.grid < 2 || options.grid > 256) {
     throw InvalidArgument("BspMeshOptions.grid must be in [2, 256]");
   }
+  if (!(options.bound > 0.0) || !std::isfinite(options.bound)) {
+    throw InvalidArgument("BspMeshOptions.bound must be finite and > 0, got " +
+                          std::to_string(options.bound));
+  }
   CheckDilation(options.dilation);
   const double dil = options.dilation;
   const int G = options.grid;
   const std::size_t cells = static_cast<std::size_t>(G) * G * G;
-  auto coord = [G](int i) { return -1.0f + (2.0f * i + 1.0f) / static_cast<float>(G); };
 
-  // A grid point can only be inside convex k (summed excess < threshold) if every single
-  // plane's excess is below the threshold, i.e. if it lies in the polytope of the planes
-  // shifted outwards by the threshold. That polytope's box bounds the cells to test exactly;
-  // an empty one means the convex holds no grid point.
+  // The cells whose centres can lie in the clipping box (all of them for bound >= 1).
+  CellRange all;
+  for (int a = 0; a < 3; ++a) {
+    all.lo[a] =
+        std::max(0, static_cast<int>(std::ceil((-options.bound + 1.0) * G / 2.0 - 0.5)) - 1);
+    all.hi[a] =
+        std::min(G - 1, static_cast<int>(std::floor((options.bound + 1.0) * G / 2.0 - 0.5)) + 1);
+  }
   geometry::PolytopeOptions popt;
   popt.bounds.min = geometry::Vec3::Constant(-options.bound);
   popt.bounds.max = geometry::Vec3::Constant(options.bound);
@@ -116,44 +259,15 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& input_planes,
   std::vector<std::vector<std::uint32_t>> inside(C);  // grid cells inside each convex
   std::vector<int> count(cells, 0);
   BspMeshResult result;
-  auto half_spaces = [&](const std::vector<int>& ids, double shift) {
-    std::vector<geometry::HalfSpace> hs;
-    hs.reserve(ids.size());
-    for (int p : ids) {
-      hs.push_back({geometry::Vec3(planes(p, 0), planes(p, 1), planes(p, 2)),
-                    static_cast<double>(planes(p, 3)) - shift});
-    }
-    return hs;
-  };
+  GridTester tester(G, options.inside_threshold, options.dilation);
   for (std::size_t k = 0; k < C; ++k) {
-    const auto& ids = convex_planes[k];
-    if (ids.empty()) continue;
-    const geometry::Polytope grown =
-        geometry::IntersectHalfSpaces(half_spaces(ids, options.inside_threshold + dil), popt);
-    if (grown.empty()) continue;
-    geometry::AABB box;
-    for (const auto& v : grown.vertices) box.Extend(v);
-    int lo[3], hi[3];
-    for (int a = 0; a < 3; ++a) {
-      // Cell centres c_i = -1 + (2i + 1) / G inside [box.min, box.max].
-      lo[a] = std::max(0, static_cast<int>(std::ceil((box.min[a] + 1.0) * G / 2.0 - 0.5)) - 1);
-      hi[a] = std::min(G - 1, static_cast<int>(std::floor((box.max[a] + 1.0) * G / 2.0 - 0.5)) + 1);
-    }
-    for (int z = lo[2]; z <= hi[2]; ++z) {
-      for (int y = lo[1]; y <= hi[1]; ++y) {
-        for (int x = lo[0]; x <= hi[0]; ++x) {
-          if (InsideConvex(planes, ids, coord(x), coord(y), coord(z), options.inside_threshold,
-                           options.dilation)) {
-            const std::uint32_t cell = static_cast<std::uint32_t>(x + G * (y + G * z));
-            inside[k].push_back(cell);
-            ++count[cell];
-          }
-        }
-      }
-    }
+    if (convex_planes[k].empty()) continue;
+    tester.Run(planes, convex_planes[k], all, &inside[k]);
+    for (std::uint32_t cell : inside[k]) ++count[cell];
     if (!inside[k].empty()) ++result.nonempty_convexes;
   }
   // Greedy redundancy removal in convex index order.
+  std::vector<geometry::HalfSpace> hs;
   for (std::size_t k = 0; k < C; ++k) {
     if (inside[k].empty()) continue;
     bool redundant = true;
@@ -169,8 +283,12 @@ BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& input_planes,
     }
     // The mesh is the exact polytope of the (dilated) planes, as bspt's without dilation; a
     // convex that holds grid points only within the tolerance has none.
-    const geometry::Polytope poly =
-        geometry::IntersectHalfSpaces(half_spaces(convex_planes[k], dil), popt);
+    hs.clear();
+    for (int p : convex_planes[k]) {
+      hs.push_back({geometry::Vec3(planes(p, 0), planes(p, 1), planes(p, 2)),
+                    static_cast<double>(planes(p, 3)) - dil});
+    }
+    const geometry::Polytope poly = geometry::IntersectHalfSpaces(hs, popt);
     if (poly.empty()) continue;
     result.kept_convexes.push_back(static_cast<int>(k));
     const geometry::TriangleMesh part = poly.ToMesh();

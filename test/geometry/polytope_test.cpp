@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <cstdio>
 #include <map>
 #include <random>
@@ -12,6 +13,7 @@
 #include <utility>
 #include <vector>
 
+#include "dimr/core/hash.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::geometry {
@@ -607,6 +609,72 @@ TEST(Polytope, RandomSetsMatchMonteCarlo) {
   std::printf("random polytopes: %d non-empty, %d empty\n", non_empty, empty);
   EXPECT_GT(non_empty, 150);
   EXPECT_GT(empty, 3);
+}
+
+namespace golden {
+
+// Deterministic uniform doubles in [0, 1) (SplitMix64; no standard-library distribution, whose
+// output may differ between library versions).
+struct Mix {
+  std::uint64_t s;
+  double Next() {
+    std::uint64_t z = (s += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    z ^= z >> 31;
+    return static_cast<double>(z >> 11) * 0x1.0p-53;
+  }
+};
+
+std::uint64_t HashOf(const Polytope& p, std::uint64_t h) {
+  for (const Vec3& v : p.vertices) h = Fnv1a(v.data(), 3 * sizeof(double), h);
+  for (const auto& f : p.faces) h = Fnv1a(f.data(), f.size() * sizeof(int), h);
+  return Fnv1a(p.face_plane.data(), p.face_plane.size() * sizeof(int), h);
+}
+
+}  // namespace golden
+
+// Sets shaped like the BSP decoder's convexes (hundreds of planes, most of them far outside
+// the part, a few cutting it, some unnormalised, duplicated or on the bounds): the vertices,
+// faces and face planes hash to the values recorded with the implementation before the
+// bounding-box skip of planes that cannot cut (bit-exact, same order).
+TEST(Polytope, BspLikeSetsBitExactWithRecordedOutput) {
+  golden::Mix rng{77};
+  std::uint64_t h = kFnv1aOffset;
+  int non_empty = 0;
+  for (int trial = 0; trial < 60; ++trial) {
+    std::vector<HalfSpace> planes;
+    const Vec3 c(rng.Next() - 0.5, rng.Next() - 0.5, rng.Next() - 0.5);
+    const double r = 0.1 + 0.5 * rng.Next();
+    for (int i = 0; i < 320; ++i) {
+      Vec3 n(rng.Next() - 0.5, rng.Next() - 0.5, rng.Next() - 0.5);
+      if (n.norm() < 1e-3) n = Vec3(0, 0, 1);
+      n.normalize();
+      const double kind = rng.Next();
+      // Tangent-ish to a sphere around c (cutting), far away (redundant) or an axis plane.
+      double dist = kind < 0.15 ? r * (0.8 + 0.4 * rng.Next()) : r + 0.5 + 2.0 * rng.Next();
+      if (kind > 0.97) {
+        n = Vec3::Zero();
+        n[i % 3] = i % 2 ? 1.0 : -1.0;
+        dist = 1.0 - n.dot(c);  // n.x <= 1: on a face of the bounds [-1, 1]^3
+      }
+      const double scale = 0.2 + 5.0 * rng.Next();
+      planes.push_back({n * scale, (-dist - n.dot(c)) * scale});
+      if (i % 53 == 7) planes.push_back(planes.back());
+    }
+    const Polytope p = IntersectHalfSpaces(planes);
+    h = golden::HashOf(p, h);
+    if (p.empty()) continue;
+    ++non_empty;
+    CheckStructure(p, planes);
+    if (HasFailure()) {
+      ADD_FAILURE() << "trial " << trial;
+      return;
+    }
+  }
+  EXPECT_GT(non_empty, 50);
+  std::printf("polytope golden hash %016llx\n", static_cast<unsigned long long>(h));
+  EXPECT_EQ(h, 0x66d577ef6ed43843ull);
 }
 
 }  // namespace

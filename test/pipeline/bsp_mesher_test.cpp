@@ -4,10 +4,14 @@
 
 #include <map>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include "bsp_mesher_reference.h"
 #include "dimr/geometry/error.h"
+#include "dimr/pipeline/bsp_decoder.h"
+#include "dimr/pipeline/shape_pool.h"
 
 namespace dimr::pipeline {
 namespace {
@@ -178,6 +182,123 @@ TEST(BspMesher, RejectsBadInput) {
   EXPECT_THROW(ExtractBspMesh(Eigen::MatrixXf::Zero(3, 3), {}), InvalidArgument);
   // No convex at all: an empty mesh, not an error.
   EXPECT_TRUE(ExtractBspMesh(Eigen::MatrixXf::Zero(0, 4), {}).mesh.faces.empty());
+}
+
+// Bit-for-bit equality of two extraction results (vertices compared as doubles, not nearly).
+void ExpectSameResult(const BspMeshResult& want, const BspMeshResult& got,
+                      const std::string& what) {
+  EXPECT_EQ(got.nonempty_convexes, want.nonempty_convexes) << what;
+  EXPECT_EQ(got.kept_convexes, want.kept_convexes) << what;
+  EXPECT_EQ(got.face_convex, want.face_convex) << what;
+  ASSERT_EQ(got.mesh.vertices.size(), want.mesh.vertices.size()) << what;
+  ASSERT_EQ(got.mesh.faces.size(), want.mesh.faces.size()) << what;
+  for (std::size_t v = 0; v < want.mesh.vertices.size(); ++v) {
+    ASSERT_TRUE((got.mesh.vertices[v].array() == want.mesh.vertices[v].array()).all())
+        << what << ": vertex " << v;
+  }
+  for (std::size_t f = 0; f < want.mesh.faces.size(); ++f) {
+    ASSERT_EQ(got.mesh.faces[f], want.mesh.faces[f]) << what << ": face " << f;
+  }
+}
+
+// The shipped decoder's shapes (pool codes of every class): the subdivided grid test gives
+// exactly the reference extraction (every cell of the grown polytope's box tested with every
+// plane), with the card's decoding, the reference decoding and a large plane dilation.
+TEST(BspMesher, FastExtractionEqualsTheReferenceOnDecodedShapes) {
+  const BspDecoder decoder = BspDecoder::Load(std::string(DIMR_SOURCE_DIR) + "/models/bsp/bsp.pt");
+  const ShapePool pool = ShapePool::Load(std::string(DIMR_SOURCE_DIR) + "/models/bsp/pool.bin");
+  ASSERT_GE(pool.size(), 16u);
+  std::vector<BspMeshOptions> options(3, decoder.mesh_options());
+  options[1] = BspMeshOptions();
+  options[2].dilation = 0.2f;
+  int kept = 0;
+  for (std::size_t s = 0; s < 16; ++s) {
+    const PoolEntry& e = pool.entries()[s * pool.size() / 16];
+    const Eigen::MatrixXf planes = decoder.Planes(e.code, e.cad_class);
+    for (std::size_t o = 0; o < options.size(); ++o) {
+      const BspMeshResult want =
+          testing::ReferenceExtractBspMesh(planes, decoder.convex_planes(), options[o]);
+      const BspMeshResult got = ExtractBspMesh(planes, decoder.convex_planes(), options[o]);
+      ExpectSameResult(want, got, e.model_id + " options " + std::to_string(o));
+      kept += static_cast<int>(got.kept_convexes.size());
+    }
+  }
+  EXPECT_GT(kept, 16 * 3 * 4);  // real shapes of several parts, not empty ones
+}
+
+// Random plane sets built to hit the subdivision's branches: convexes of a few cutting planes
+// among hundreds that are positive nowhere, tiny and huge plane scales, zero normals, planes
+// far outside, coarse and odd grids, a clipping box smaller and larger than [-1, 1]^3, a zero
+// and a large threshold.
+TEST(BspMesher, FastExtractionEqualsTheReferenceOnRandomPlaneSets) {
+  std::mt19937 rng(19);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  int nonempty = 0;
+  for (int trial = 0; trial < 24; ++trial) {
+    const int P = 400, C = 24;
+    Eigen::MatrixXf planes(P, 4);
+    for (int p = 0; p < P; ++p) {
+      Eigen::Vector3f n(u(rng), u(rng), u(rng));
+      const float kind = 0.5f * (u(rng) + 1.f);
+      float scale = kind < 0.1f ? 1e-3f : (kind > 0.9f ? 50.f : 1.f + u(rng));
+      if (p % 97 == 5) n.setZero();
+      // Planes through a point near the origin: the convex is a part of about half a unit.
+      const float offset = kind < 0.6f ? 0.3f + 0.3f * u(rng) : 2.0f + u(rng);
+      planes.row(p) << scale * n.x(), scale * n.y(), scale * n.z(),
+          -scale * (offset * n.norm() + 0.2f * u(rng) * (p % 3 == 0));
+    }
+    std::vector<std::vector<int>> convexes(C);
+    for (int k = 0; k < C; ++k) {
+      const int m = k % 6 == 0 ? 3 : 6 + static_cast<int>(rng() % 200);
+      for (int j = 0; j < m; ++j) convexes[k].push_back(static_cast<int>(rng() % P));
+    }
+    BspMeshOptions opt;
+    opt.grid = std::vector<int>{32, 2, 5, 17, 32, 40}[trial % 6];
+    opt.bound = std::vector<double>{1.0, 0.7, 1.5, 1.0}[trial % 4];
+    opt.inside_threshold = std::vector<float>{0.01f, 0.0f, 0.3f}[trial % 3];
+    opt.dilation = trial % 5 == 1 ? 0.05f : 0.0f;
+    opt.distance_dilation = trial % 7 == 2 ? 0.02f : 0.0f;
+    const BspMeshResult want = testing::ReferenceExtractBspMesh(planes, convexes, opt);
+    const BspMeshResult got = ExtractBspMesh(planes, convexes, opt);
+    ExpectSameResult(want, got, "trial " + std::to_string(trial));
+    nonempty += want.nonempty_convexes;
+  }
+  EXPECT_GT(nonempty, 24);
+}
+
+// Convexes that hold grid cells only through the tolerance: cells whose summed excess is just
+// below the threshold count (nonempty), whole blocks of them, and still make no polytope.
+TEST(BspMesher, CellsJustBelowTheThresholdCount) {
+  // Cell centres of the 32^3 grid: x = (2i + 1) / 32 - 1, so i = 16 is at x = 0.03125.
+  Eigen::MatrixXf planes(6, 4);
+  planes << 1, 0, 0, 0,  // x <= 0
+      -1, 0, 0, 0.03f,   // x >= 0.03
+      0, 1, 0, 0,        // y <= 0
+      0, -1, 0, 0.03f,   // y >= 0.03
+      0, 0, 1, 0.5f,     // z <= -0.5
+      0, 0, -1, -0.6f;   // z >= -0.6 (a real slab: the cells are a whole block)
+  const std::vector<std::vector<int>> convexes = {{0, 1, 4, 5}, {0, 1, 2, 3, 4, 5}};
+  BspMeshOptions opt;
+  opt.inside_threshold = 0.0313f;  // one excess of 0.03125 is inside, two are not
+  BspMeshResult r = ExtractBspMesh(planes, convexes, opt);
+  EXPECT_EQ(r.nonempty_convexes, 1);
+  EXPECT_TRUE(r.kept_convexes.empty());
+  ExpectSameResult(testing::ReferenceExtractBspMesh(planes, convexes, opt), r, "one excess");
+  opt.inside_threshold = 0.0626f;  // 2 x 0.03125 = 0.0625 is inside
+  r = ExtractBspMesh(planes, convexes, opt);
+  EXPECT_EQ(r.nonempty_convexes, 2);
+  ExpectSameResult(testing::ReferenceExtractBspMesh(planes, convexes, opt), r, "two excesses");
+  opt.inside_threshold = 0.0312f;  // neither
+  EXPECT_EQ(ExtractBspMesh(planes, convexes, opt).nonempty_convexes, 0);
+}
+
+TEST(BspMesher, RejectsBadBound) {
+  const Scene s = MakeScene();
+  BspMeshOptions opt;
+  for (double b : {0.0, -1.0, std::numeric_limits<double>::infinity()}) {
+    opt.bound = b;
+    EXPECT_THROW(ExtractBspMesh(s.planes, s.convexes, opt), InvalidArgument) << b;
+  }
 }
 
 TEST(BspMesher, GridCentersAndOccupancyIoU) {

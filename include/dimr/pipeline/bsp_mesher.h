@@ -4,6 +4,14 @@
 // order), then build each kept convex as an exact polytope from its planes
 // (geometry::IntersectHalfSpaces) and concatenate them (closed, possibly overlapping convex
 // parts; no boolean union, as the reference). LibTorch-free.
+//
+// The grid test subdivides the grid per convex and bounds every plane over a block of cells
+// (docs/architecture.md, pipeline): planes positive nowhere in a block are dropped for it,
+// blocks whose summed minimum excess reaches the threshold are skipped, and only the cells of
+// small undecided blocks are tested, with the planes left in plane order. The result is that
+// of testing every cell with every plane, bit for bit (test/pipeline/bsp_mesher_reference.h
+// keeps that straightforward implementation; ~1.5 ms instead of ~12 ms per shipped-model
+// shape).
 #pragma once
 
 #include <Eigen/Core>
@@ -18,7 +26,7 @@ namespace dimr::pipeline {
 struct BspMeshOptions {
   int grid = 32;                   // evaluation grid (reference: 32^3)
   float inside_threshold = 0.01f;  // inside convex iff sum of plane excesses < threshold
-  double bound = 1.0;              // polytopes are clipped to [-bound, bound]^3
+  double bound = 1.0;              // polytopes are clipped to [-bound, bound]^3 (> 0)
   // Every plane moved outwards by this much (plane units: a x + b y + c z + d <= dilation) for
   // both the grid test and the polytopes, so meshes and occupancy stay one shape. 0 = the
   // reference. The decoder under-covers thin parts; a dilation chosen on validation shapes
@@ -39,7 +47,8 @@ struct BspMeshResult {
 
 // planes: P x 4 (a, b, c, d), inside a plane iff a x + b y + c z + d <= 0.
 // convex_planes[k]: the plane indices of convex k. Throws dimr::InvalidArgument on a plane
-// index out of range or non-finite planes of a used convex.
+// index out of range, non-finite planes of a used convex, or bad options (grid outside
+// [2, 256], a negative or non-finite dilation, bound not finite and > 0).
 BspMeshResult ExtractBspMesh(const Eigen::MatrixXf& planes,
                              const std::vector<std::vector<int>>& convex_planes,
                              const BspMeshOptions& options = BspMeshOptions());
