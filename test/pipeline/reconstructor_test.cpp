@@ -136,7 +136,8 @@ TEST_F(ReconstructorRoom, FindsTheObjectsWithTheirClassesAndMeshesNearThePoints)
     EXPECT_LE(inst.score, prev_score);  // descending score
     prev_score = inst.score;
     EXPECT_GT(inst.score, 0.05);
-    EXPECT_GT(inst.support.size(), 100u);
+    EXPECT_GT(inst.support.size(), static_cast<std::size_t>(rec_->config().min_points));
+    EXPECT_GE(rec_->config().min_points, 1);
     EXPECT_EQ(inst.source, MeshSource::kGenerated);
     EXPECT_EQ(inst.latent.size(), 256);
     const int g = MatchGt(inst);
