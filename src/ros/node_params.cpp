@@ -40,9 +40,15 @@ void DeclarePipelineParams(pipeline::ReconstructorConfig* c, PipelineParamText* 
   t->AddInt("pipeline/min_points", &c->min_points, 0, 1000000, "",
             "keep proposals with more points than this");
   t->AddDouble("pipeline/nms_iou", &c->nms_iou, 0, 1, "", "point-IoU non-maximum suppression");
+  t->AddString("pipeline/score", &text->score, {"combined", "stage2"},
+               "detection score: combined = sqrt(stage-1 x stage-2), stage2 = the reference's");
   t->AddBool("pipeline/icp/enabled", &c->icp.enabled, "refine each mesh's pose by ICP");
   t->AddDouble("pipeline/icp/max_correspondence", &c->icp.max_correspondence, 1e-4, 1, "m",
                "ICP correspondence distance");
+  t->AddString("pipeline/icp/backend", &text->icp_backend, {"own", "pcl"},
+               "ICP implementation: own (kd-tree, early stop) or PCL's");
+  t->AddString("pipeline/icp/metric", &text->icp_metric, {"point_to_point", "point_to_plane"},
+               "ICP error metric (own backend)");
   t->AddInt("pipeline/icp/max_iterations", &c->icp.max_iterations, 1, 10000, "", "ICP iterations");
   t->AddInt("pipeline/icp/samples", &c->icp.samples, 3, 1000000, "", "mesh surface samples");
   t->AddDouble("pipeline/icp/max_tilt_deg", &c->icp.max_tilt_deg, 0, 90, "deg",
@@ -66,6 +72,9 @@ ReadResult ReadNodeParams(const ParamSource& source, const std::string& package_
   p.preset = pipeline::ParseReconstructionPreset(text.preset);
   p.mode = pipeline::ParseReconstructionMode(text.mode);
   p.seed = static_cast<std::uint64_t>(text.seed);
+  p.score = pipeline::ParseScoreRanking(text.score);
+  p.icp.backend = pipeline::ParseIcpBackend(text.icp_backend);
+  p.icp.metric = pipeline::ParseIcpMetric(text.icp_metric);
   p.icp.seed = p.seed;
   for (std::string* path :
        {&p.stage1_model, &p.stage2_model, &p.bsp_model, &p.pool, &p.pool_meshes})

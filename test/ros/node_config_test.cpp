@@ -153,13 +153,18 @@ TEST(NodeParams, DefaultYamlHasEveryParameterAndNothingElse) {
   EXPECT_EQ(r.params.pipeline.icp.samples, def.icp.samples);
   EXPECT_EQ(r.params.pipeline.preset, def.preset);
   EXPECT_EQ(r.params.pipeline.mode, def.mode);
+  EXPECT_EQ(r.params.pipeline.min_points, def.min_points);
+  EXPECT_EQ(r.params.pipeline.score, def.score);
+  EXPECT_EQ(r.params.pipeline.icp.backend, def.icp.backend);
+  EXPECT_EQ(r.params.pipeline.icp.metric, def.icp.metric);
   EXPECT_NE(r.resolved.find("pipeline/icp/max_tilt_deg: 10"), std::string::npos);
 }
 
 TEST(NodeParams, PipelineValuesAndErrors) {
   const ReadResult r = ReadNodeParams(
       *YamlParamSourceFromString("pipeline: {mode: retrieval, preset: fast, k: 4, pool: /p.bin,"
-                                 " icp: {enabled: false}}\nmax_input_points: 5000000\n",
+                                 " score: stage2, icp: {enabled: false, backend: pcl,"
+                                 " metric: point_to_plane}}\nmax_input_points: 5000000\n",
                                  "t.yaml"),
       "");
   EXPECT_EQ(r.params.pipeline.mode, pipeline::ReconstructionMode::kRetrieval);
@@ -167,6 +172,9 @@ TEST(NodeParams, PipelineValuesAndErrors) {
   EXPECT_EQ(r.params.pipeline.k, 4);
   EXPECT_EQ(r.params.pipeline.pool, "/p.bin");
   EXPECT_FALSE(r.params.pipeline.icp.enabled);
+  EXPECT_EQ(r.params.pipeline.score, pipeline::ScoreRanking::kStage2);
+  EXPECT_EQ(r.params.pipeline.icp.backend, pipeline::IcpBackend::kPcl);
+  EXPECT_EQ(r.params.pipeline.icp.metric, pipeline::IcpMetric::kPointToPlane);
   EXPECT_GE(r.params.pipeline.max_points, 5000000u);  // never below what the node hands over
   EXPECT_FALSE(r.params.pipeline.crop);
   auto bad = [](const std::string& yaml, const std::string& needle) {
@@ -182,6 +190,8 @@ TEST(NodeParams, PipelineValuesAndErrors) {
   bad("pipeline: {stage1_model: \"\"}", "must not be empty");
   bad("pipeline: {icp: {max_tilt_deg: 95}}", "pipeline/icp/max_tilt_deg");
   bad("pipeline: {nms_iou: high}", "expected a number");
+  bad("pipeline: {icp: {backend: open3d}}", "pipeline/icp/backend");
+  bad("pipeline: {score: stage1}", "pipeline/score");
 }
 
 TEST(ParamTable, DuplicateDeclarationAndRangeText) {

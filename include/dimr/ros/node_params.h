@@ -24,6 +24,9 @@ struct PipelineParamText {
   std::string preset = "accurate";  // fast | accurate
   std::string mode = "generation";  // generation | projection | retrieval
   int seed = 0;
+  std::string score = "combined";             // combined | stage2
+  std::string icp_backend = "own";            // own | pcl
+  std::string icp_metric = "point_to_point";  // point_to_point | point_to_plane
 };
 void DeclarePipelineParams(pipeline::ReconstructorConfig* config, PipelineParamText* text,
                            ParamTable* table);
