@@ -9,7 +9,6 @@
 #include <limits>
 #include <numeric>
 #include <string>
-#include <unordered_map>
 
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_data.h"
@@ -32,26 +31,16 @@ struct CellKey {
   }
 };
 
-struct CellKeyHash {
-  std::size_t operator()(const CellKey& k) const {
-    // splitmix64 finaliser over a combination of the three coordinates.
-    std::uint64_t h = static_cast<std::uint64_t>(k.x) * 0x9E3779B97F4A7C15ull;
-    h ^= static_cast<std::uint64_t>(k.y) + 0xBF58476D1CE4E5B9ull + (h << 6) + (h >> 2);
-    h ^= static_cast<std::uint64_t>(k.z) + 0x94D049BB133111EBull + (h << 6) + (h >> 2);
-    h ^= h >> 30;
-    h *= 0xBF58476D1CE4E5B9ull;
-    h ^= h >> 27;
-    h *= 0x94D049BB133111EBull;
-    h ^= h >> 31;
-    return static_cast<std::size_t>(h);
-  }
-};
-
-// Ball query over a uniform voxel hash of the labelled points, with the BFS's visited flags.
+// Ball query over a uniform voxel hash of the labelled points, with the BFS's visited state.
 // The cell is a hair larger than the radius so that every pair with d < r (even after float
-// rounding of d^2) lies in adjacent cells. Inside a cell the points are kept in index order,
-// which lets a query stop early when the neighbour cap makes every unvisited point
-// unreachable.
+// rounding of d^2) lies in adjacent cells. The points are stored cell-major, by label inside
+// a cell and by index inside a (cell, label) segment; each segment also keeps its unvisited
+// points in index order (visited ones dropped in batches), so a query tests only the points
+// it could still add to the BFS (unvisited, same label). Where the neighbour cap can bind (more
+// than cap points in the 27 cells), the cap-th neighbour index T_j of a point is bracketed by
+// bounds shared by its sub-box of the cell (Bounds): candidates below the lower bound are
+// neighbours, those above the upper one are not, and only the ones in between need j's exact
+// ranks (its hits below them, counted in index order as the reference's scan).
 class BallQuery {
  public:
   BallQuery(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& labels,
@@ -60,141 +49,355 @@ class BallQuery {
     const float rf = static_cast<float>(radius);
     r2_ = rf * rf;  // as the reference kernel: float radius, float radius^2
     inv_cell_ = 1.0 / (radius * (1.0 + 1e-5));
-    std::vector<std::pair<CellKey, int>> keyed;
+    struct Keyed {
+      CellKey key;
+      int label, index;
+    };
+    std::vector<Keyed> keyed;
     for (int i = 0; i < static_cast<int>(points.size()); ++i) {
-      if (labels[i] >= 0) keyed.emplace_back(Key(points[i]), i);
+      if (labels[i] >= 0) keyed.push_back({Key(points[i]), labels[i], i});
     }
-    // Cell-major, index order inside a cell (the input is in index order: stable sort).
-    std::stable_sort(keyed.begin(), keyed.end(),
-                     [](const auto& a, const auto& b) { return a.first < b.first; });
+    std::sort(keyed.begin(), keyed.end(), [](const Keyed& a, const Keyed& b) {
+      if (!(a.key == b.key)) return a.key < b.key;
+      if (a.label != b.label) return a.label < b.label;
+      return a.index < b.index;
+    });
     const std::size_t n = keyed.size();
     order_.resize(n);
     xs_.resize(n);
     ys_.resize(n);
     zs_.resize(n);
-    cell_of_.assign(points.size(), -1);
-    index_.reserve(n);
+    slot_of_.assign(points.size(), -1);
+    seg_of_.assign(points.size(), -1);
+    std::vector<CellKey> cell_keys;
     for (std::size_t i = 0; i < n; ++i) {
-      const int k = keyed[i].second;
+      const int k = keyed[i].index;
       order_[i] = k;
       xs_[i] = points[k].x();
       ys_[i] = points[k].y();
       zs_[i] = points[k].z();
-      if (i == 0 || !(keyed[i].first == keyed[i - 1].first)) {
-        index_.emplace(keyed[i].first, static_cast<int>(cells_.size()));
-        const int begin = static_cast<int>(i);
-        cells_.push_back({begin, begin, 0, begin});
+      const bool new_cell = i == 0 || !(keyed[i].key == keyed[i - 1].key);
+      if (new_cell) {
+        cell_keys.push_back(keyed[i].key);
+        cell_seg_begin_.push_back(static_cast<int>(segs_.size()));
       }
-      cells_.back().end = static_cast<int>(i) + 1;
-      ++cells_.back().unvisited;
-      cell_of_[k] = static_cast<int>(cells_.size()) - 1;
+      if (new_cell || keyed[i].label != keyed[i - 1].label) {
+        const int begin = static_cast<int>(i);
+        segs_.push_back({begin, begin, keyed[i].label, begin, 0,
+                         static_cast<int>(cell_keys.size()) - 1, begin});
+      }
+      Segment& seg = segs_.back();
+      seg.end = seg.live_end = static_cast<int>(i) + 1;
+      ++seg.unvisited;
+      slot_of_[k] = static_cast<int>(i);
+      seg_of_[k] = static_cast<int>(segs_.size()) - 1;
     }
-    // The occupied cells among each cell's 27 (itself included), looked up once per cell
-    // instead of 27 hash probes per query (a query point is always a labelled point, whose cell
-    // is known).
-    near_begin_.reserve(cells_.size() + 1);
+    cell_seg_begin_.push_back(static_cast<int>(segs_.size()));
+    // The unvisited arrays start as copies (same slots).
+    uorder_ = order_;
+    ux_ = xs_;
+    uy_ = ys_;
+    uz_ = zs_;
+    // The occupied cells among each cell's 27 (itself included) and the number of labelled
+    // points in them (if it is <= cap the cap cannot bind). The keys are sorted, so for each
+    // (dx, dy) the run of keys (x + dx, y + dy, z - 1 .. z + 1) moves forward with the cell:
+    // nine monotone cursors instead of 27 hash probes per cell.
+    const std::size_t num_cells = cell_keys.size();
+    near_begin_.reserve(num_cells + 1);
     near_begin_.push_back(0);
-    std::size_t first = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      if (i + 1 < n && keyed[i + 1].first == keyed[i].first) continue;
-      const CellKey c = keyed[first].first;
-      first = i + 1;
-      for (std::int64_t dx = -1; dx <= 1; ++dx) {
-        for (std::int64_t dy = -1; dy <= 1; ++dy) {
-          for (std::int64_t dz = -1; dz <= 1; ++dz) {
-            const auto it = index_.find({c.x + dx, c.y + dy, c.z + dz});
-            if (it != index_.end()) near_.push_back(it->second);
-          }
+    near_total_.reserve(num_cells);
+    std::size_t cursor[9] = {};
+    for (std::size_t c = 0; c < num_cells; ++c) {
+      const CellKey key = cell_keys[c];
+      std::size_t total = 0;
+      for (int d = 0; d < 9; ++d) {
+        const CellKey from{key.x + d / 3 - 1, key.y + d % 3 - 1, key.z - 1};
+        const CellKey to{from.x, from.y, key.z + 1};
+        std::size_t& q = cursor[d];
+        while (q < num_cells && cell_keys[q] < from) ++q;
+        for (std::size_t e = q; e < num_cells && !(to < cell_keys[e]); ++e) {
+          near_.push_back(static_cast<int>(e));
+          total += segs_[cell_seg_begin_[e + 1] - 1].end - segs_[cell_seg_begin_[e]].begin;
         }
       }
       near_begin_.push_back(static_cast<int>(near_.size()));
+      near_total_.push_back(total);
+    }
+    // Sub-boxes: kSub^3 per cell, each with the bounding box of its points.
+    std::vector<std::pair<std::int64_t, int>> sub(n);
+    for (std::size_t i = 0; i < n; ++i) {
+      const int k = order_[i];
+      const CellKey key = cell_keys[segs_[seg_of_[k]].cell];
+      const auto part = [&](float v, std::int64_t c) {
+        const double f = (static_cast<double>(v) * inv_cell_ - static_cast<double>(c)) * kSub;
+        return static_cast<std::int64_t>(std::clamp(std::floor(f), 0.0, kSub - 1.0));
+      };
+      const std::int64_t code =
+          (part(xs_[i], key.x) * kSub + part(ys_[i], key.y)) * kSub + part(zs_[i], key.z);
+      sub[i] = {static_cast<std::int64_t>(segs_[seg_of_[k]].cell) * kSub * kSub * kSub + code,
+                static_cast<int>(i)};
+    }
+    std::sort(sub.begin(), sub.end());
+    group_of_.assign(points.size(), -1);
+    for (std::size_t i = 0; i < n; ++i) {
+      const int slot = sub[i].second;
+      if (i == 0 || sub[i].first != sub[i - 1].first) {
+        Group g;
+        g.first_slot = slot;
+        g.lo[0] = g.hi[0] = xs_[slot];
+        g.lo[1] = g.hi[1] = ys_[slot];
+        g.lo[2] = g.hi[2] = zs_[slot];
+        groups_.push_back(g);
+      }
+      Group& g = groups_.back();
+      const float v[3] = {xs_[slot], ys_[slot], zs_[slot]};
+      for (int a = 0; a < 3; ++a) {
+        g.lo[a] = std::min(g.lo[a], v[a]);
+        g.hi[a] = std::max(g.hi[a], v[a]);
+      }
+      group_of_[order_[slot]] = static_cast<int>(groups_.size()) - 1;
     }
   }
 
   bool visited(int k) const { return visited_[k] != 0; }
   void MarkVisited(int k) {
     visited_[k] = 1;
-    --cells_[cell_of_[k]].unvisited;
+    Segment& seg = segs_[seg_of_[k]];
+    --seg.unvisited;
+    // Drop the visited entries of the segment's unvisited arrays once they are the majority
+    // (stable: the arrays stay in index order; amortised O(1) per visit).
+    const int size = seg.live_end - seg.begin;
+    if (size >= 16 && size - seg.unvisited > seg.unvisited) {
+      int out = seg.begin;
+      for (int s = seg.begin; s < seg.live_end; ++s) {
+        if (visited_[uorder_[s]]) continue;
+        uorder_[out] = uorder_[s];
+        ux_[out] = ux_[s];
+        uy_[out] = uy_[s];
+        uz_[out] = uz_[s];
+        ++out;
+      }
+      seg.live_end = out;
+    }
   }
 
-  // The neighbours of labelled point j (at p) that may still matter to the BFS: all labelled k with
-  // |x_j - x_k|^2 < r^2 (float), in arbitrary order, not yet truncated to the cap. Returns
-  // false (without the full scan) if no unvisited point can be among j's first `cap`
-  // neighbours in index order: every point of the 27 cells is visited, or `cap` neighbours
-  // have a smaller index than the smallest unvisited one.
-  bool Query(int j, const Eigen::Vector3f& p, std::vector<int>* hits) {
-    hits->clear();
-    const int cj = cell_of_[j];
+  // The points that labelled point j (at p, label `label`, already visited) adds to the BFS,
+  // in increasing index order, into *fresh: the unvisited points k of the same label with
+  // |x_j - x_k|^2 < r^2 (float) that are among j's first `cap` neighbours in index order
+  // (neighbours: all labelled points within the radius, j itself included).
+  void Query(int j, const Eigen::Vector3f& p, int label, std::vector<int>* fresh) {
+    fresh->clear();
+    const int cj = segs_[seg_of_[j]].cell;
     const int* near = near_.data() + near_begin_[cj];
     const int num_near = near_begin_[cj + 1] - near_begin_[cj];
-    int unvisited = 0;
-    for (int n = 0; n < num_near; ++n) unvisited += cells_[near[n]].unvisited;
-    if (unvisited == 0) return false;
-    // Smallest unvisited index around j (each cell's first-unvisited slot only moves forward).
-    int min_unvisited = std::numeric_limits<int>::max();
-    std::size_t total = 0;
+    // Smallest unvisited index of `label` around j (each segment's first-unvisited slot only
+    // moves forward) and the segments holding such points.
+    int m = std::numeric_limits<int>::max();
+    int label_segs[27];
+    int num_label_segs = 0;
     for (int n = 0; n < num_near; ++n) {
-      Cell& cell = cells_[near[n]];
-      while (cell.first_unvisited < cell.end && visited_[order_[cell.first_unvisited]]) {
-        ++cell.first_unvisited;
+      const int c = near[n];
+      for (int g = cell_seg_begin_[c]; g < cell_seg_begin_[c + 1]; ++g) {
+        Segment& seg = segs_[g];
+        if (seg.label != label) continue;
+        if (seg.unvisited == 0) break;
+        while (visited_[order_[seg.first_unvisited]]) ++seg.first_unvisited;
+        m = std::min(m, order_[seg.first_unvisited]);
+        label_segs[num_label_segs++] = g;
+        break;
       }
-      if (cell.first_unvisited < cell.end) {
-        min_unvisited = std::min(min_unvisited, order_[cell.first_unvisited]);
-      }
-      total += cell.end - cell.begin;
     }
-    hits->resize(total);
-    int* out = hits->data();
+    if (num_label_segs == 0) return;
     const float px = p.x(), py = p.y(), pz = p.z();
-    std::size_t count = 0;
-    // Phase 1: the points below min_unvisited (a prefix of every cell). If they alone fill
-    // the cap, no unvisited point is a neighbour of j (stop as soon as it is reached).
-    int split[27];
-    for (int n = 0; n < num_near; ++n) {
-      const Cell& cell = cells_[near[n]];
-      // Indices ascend inside a cell: the prefix below min_unvisited by binary search.
-      const int s = static_cast<int>(
-          std::lower_bound(order_.begin() + cell.begin, order_.begin() + cell.end, min_unvisited) -
-          order_.begin());
-      split[n] = s;
-      count = Hits(px, py, pz, cell.begin, s, out, count, cap_);
-      if (count >= cap_) return false;
+    // j's cap-th neighbour index T_j (infinite if it has < cap) lies in [t_lo, t_hi], bounds
+    // shared by the points of j's sub-box (see Bounds).
+    int t_lo = kNone, t_hi = kNone;
+    if (near_total_[cj] > cap_) {
+      const Group& group = Bounds(group_of_[j], near, num_near);
+      t_lo = group.t_lo;
+      t_hi = group.t_hi;
+      if (m > t_hi) return;  // cap neighbours precede every candidate
     }
-    // Phase 2: the rest.
-    for (int n = 0; n < num_near; ++n) {
-      count = Hits(px, py, pz, split[n], cells_[near[n]].end, out, count, kNoStop);
+    std::size_t below = 0;  // hits with an index < lo
+    int lo = m;
+    if (m > t_lo) {
+      // Every candidate is undecided: if cap hits precede them, j adds nothing.
+      below = CountBelow(px, py, pz, near, num_near, m);
+      if (below >= cap_) return;
     }
-    hits->resize(count);
-    return true;
+    // The candidates: unvisited points of `label` within the radius, index <= t_hi.
+    for (int t = 0; t < num_label_segs; ++t) {
+      const Segment& seg = segs_[label_segs[t]];
+      const int* u = uorder_.data();
+      const int s0 = static_cast<int>(std::lower_bound(u + seg.begin, u + seg.live_end, m) - u);
+      const int s1 = t_hi == kNone
+                         ? seg.live_end
+                         : static_cast<int>(std::upper_bound(u + s0, u + seg.live_end, t_hi) - u);
+      const std::size_t before = fresh->size();
+      fresh->resize(before + (s1 - s0));
+      std::size_t got =
+          CompactHits(px, py, pz, &ux_[0], &uy_[0], &uz_[0], u, s0, s1, fresh->data() + before);
+      int* f = fresh->data() + before;
+      std::size_t kept = 0;
+      for (std::size_t i = 0; i < got; ++i) {
+        f[kept] = f[i];
+        kept += visited_[f[i]] ? 0 : 1;
+      }
+      fresh->resize(before + kept);
+      if (before > 0) std::inplace_merge(fresh->begin(), fresh->begin() + before, fresh->end());
+    }
+    if (fresh->empty()) return;
+    if (fresh->back() <= t_lo) return;  // all among the first cap
+    // The undecided candidates, > t_lo: j's exact neighbour ranks. lo = the first of them.
+    const auto first = std::upper_bound(fresh->begin(), fresh->end(), t_lo);
+    const int max_fresh = fresh->back();
+    if (*first != lo) {
+      lo = *first;
+      below = CountBelow(px, py, pz, near, num_near, lo);
+      if (below >= cap_) {
+        fresh->erase(first, fresh->end());
+        return;
+      }
+    }
+    // A candidate k >= lo is a neighbour iff k <= the (cap - below)-th smallest hit index
+    // >= lo (the reference stops at the cap-th hit).
+    span_hits_.clear();
+    for (int n = 0; n < num_near; ++n) {
+      const int c = near[n];
+      for (int g = cell_seg_begin_[c]; g < cell_seg_begin_[c + 1]; ++g) {
+        const Segment& seg = segs_[g];
+        const int s0 = PrefixEnd(seg, lo), s1 = PrefixEnd(seg, max_fresh + 1);
+        const std::size_t before = span_hits_.size();
+        span_hits_.resize(before + (s1 - s0));
+        const std::size_t got = CompactHits(px, py, pz, &xs_[0], &ys_[0], &zs_[0], &order_[0], s0,
+                                            s1, span_hits_.data() + before);
+        span_hits_.resize(before + got);
+      }
+    }
+    const std::size_t need = cap_ - below;  // >= 1
+    if (span_hits_.size() <= need) return;
+    std::nth_element(span_hits_.begin(), span_hits_.begin() + (need - 1), span_hits_.end());
+    const int last = span_hits_[need - 1];
+    fresh->erase(std::upper_bound(fresh->begin(), fresh->end(), last), fresh->end());
   }
 
  private:
-  struct Cell {
-    int begin, end;       // range in order_
-    int unvisited;        // labelled points of the cell not yet visited by the BFS
-    int first_unvisited;  // slots before it are all visited
+  struct Segment {
+    int begin, end;       // slots in order_ (and in the unvisited arrays, from begin)
+    int label;            //
+    int first_unvisited;  // slots of order_ before it are all visited
+    int unvisited;        // number of unvisited points
+    int cell;
+    int live_end;  // uorder_[begin, live_end): the unvisited points and some visited ones
   };
 
-  // Writes the index of slot s to *out and returns 1 if it is within the radius (branch-free
-  // compaction; the caller advances only on a hit). Same float expression as the reference.
-  std::size_t Hit(float px, float py, float pz, int s, int* out) const {
-    const float ex = px - xs_[s];
-    const float ey = py - ys_[s];
-    const float ez = pz - zs_[s];
-    const float d2 = ex * ex + ey * ey + ez * ez;
-    *out = order_[s];
-    return d2 < r2_ ? 1 : 0;
+  static constexpr int kNone = std::numeric_limits<int>::max();
+  static constexpr int kSub = 4;  // sub-boxes per cell and axis
+
+  // A sub-box of a cell: the bounding box of its points and bounds on the cap-th neighbour
+  // index of each of them (kNone: fewer than cap neighbours), computed on first use.
+  struct Group {
+    float lo[3], hi[3];
+    int first_slot;  // a slot of one of its points
+    bool ready = false;
+    int t_lo = kNone;  // cap-th smallest index of the points that may be within r of the box
+    int t_hi = kNone;  // cap-th smallest index of the points within r of all of the box
+  };
+
+  // The points whose float distance test passes for every point of the box (max distance
+  // below r with a margin far above float rounding) and those for which it may pass (min
+  // distance below r, same margin): the cap-th smallest index of each bounds T_j.
+  const Group& Bounds(int gid, const int* near, int num_near) {
+    Group& g = groups_[gid];
+    if (g.ready) return g;
+    g.ready = true;
+    const int gcell = segs_[seg_of_[order_[g.first_slot]]].cell;
+    sure_.resize(near_total_[gcell]);
+    maybe_.resize(near_total_[gcell]);
+    int* sure = sure_.data();
+    int* maybe = maybe_.data();
+    std::size_t num_sure = 0, num_maybe = 0;
+    const __m128 lox = _mm_set1_ps(g.lo[0]), loy = _mm_set1_ps(g.lo[1]), loz = _mm_set1_ps(g.lo[2]);
+    const __m128 hix = _mm_set1_ps(g.hi[0]), hiy = _mm_set1_ps(g.hi[1]), hiz = _mm_set1_ps(g.hi[2]);
+    const __m128 zero = _mm_setzero_ps();
+    const __m128 r2_sure = _mm_set1_ps(r2_ * (1.f - 1e-5f));
+    const __m128 r2_maybe = _mm_set1_ps(r2_ * (1.f + 1e-5f));
+    for (int nc = 0; nc < num_near; ++nc) {
+      const int c = near[nc];
+      const int s0 = segs_[cell_seg_begin_[c]].begin, s1 = segs_[cell_seg_begin_[c + 1] - 1].end;
+      int s = s0;
+      for (; s + 4 <= s1; s += 4) {
+        const __m128 x = _mm_loadu_ps(&xs_[s]), y = _mm_loadu_ps(&ys_[s]),
+                     z = _mm_loadu_ps(&zs_[s]);
+        const __m128 fx = _mm_max_ps(_mm_sub_ps(x, lox), _mm_sub_ps(hix, x));
+        const __m128 fy = _mm_max_ps(_mm_sub_ps(y, loy), _mm_sub_ps(hiy, y));
+        const __m128 fz = _mm_max_ps(_mm_sub_ps(z, loz), _mm_sub_ps(hiz, z));
+        const __m128 nx = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lox, x), _mm_sub_ps(x, hix)), zero);
+        const __m128 ny = _mm_max_ps(_mm_max_ps(_mm_sub_ps(loy, y), _mm_sub_ps(y, hiy)), zero);
+        const __m128 nz = _mm_max_ps(_mm_max_ps(_mm_sub_ps(loz, z), _mm_sub_ps(z, hiz)), zero);
+        const __m128 far2 =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(fx, fx), _mm_mul_ps(fy, fy)), _mm_mul_ps(fz, fz));
+        const __m128 near2 =
+            _mm_add_ps(_mm_add_ps(_mm_mul_ps(nx, nx), _mm_mul_ps(ny, ny)), _mm_mul_ps(nz, nz));
+        const unsigned ms = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(far2, r2_sure)));
+        const unsigned mm = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(near2, r2_maybe)));
+        for (int b = 0; b < 4; ++b) {
+          sure[num_sure] = maybe[num_maybe] = order_[s + b];
+          num_sure += (ms >> b) & 1u;
+          num_maybe += (mm >> b) & 1u;
+        }
+      }
+      for (; s < s1; ++s) {
+        const float v[3] = {xs_[s], ys_[s], zs_[s]};
+        float far2 = 0.f, near2 = 0.f;
+        for (int a = 0; a < 3; ++a) {
+          const float f = std::max(v[a] - g.lo[a], g.hi[a] - v[a]);
+          const float e = std::max(std::max(g.lo[a] - v[a], v[a] - g.hi[a]), 0.f);
+          far2 += f * f;
+          near2 += e * e;
+        }
+        sure[num_sure] = maybe[num_maybe] = order_[s];
+        num_sure += far2 < r2_ * (1.f - 1e-5f) ? 1 : 0;
+        num_maybe += near2 < r2_ * (1.f + 1e-5f) ? 1 : 0;
+      }
+    }
+    const auto kth = [this](int* v, std::size_t size) {
+      if (size < cap_) return kNone;
+      std::nth_element(v, v + (cap_ - 1), v + size);
+      return v[cap_ - 1];
+    };
+    g.t_hi = kth(sure, num_sure);
+    g.t_lo = kth(maybe, num_maybe);
+    return g;
   }
 
-  static constexpr std::size_t kNoStop = std::numeric_limits<std::size_t>::max();
+  // Hits of p with an index < bound (all labels), counting stops at cap.
+  std::size_t CountBelow(float px, float py, float pz, const int* near, int num_near, int bound) {
+    std::size_t below = 0;
+    for (int n = 0; n < num_near && below < cap_; ++n) {
+      const int c = near[n];
+      for (int g = cell_seg_begin_[c]; g < cell_seg_begin_[c + 1] && below < cap_; ++g) {
+        const Segment& seg = segs_[g];
+        const int s1 = PrefixEnd(seg, bound);
+        below += CountHits(px, py, pz, seg.begin, s1, cap_ - below);
+      }
+    }
+    return below;
+  }
 
-  // Hit over the slots [s0, s1): appends the indices within the radius to out + count in slot
-  // order and returns the new count, stopping early once it reaches `stop`. Four slots at a
-  // time with SSE2 (the same float operations in the same order as Hit, so the same hits).
-  std::size_t Hits(float px, float py, float pz, int s0, int s1, int* out, std::size_t count,
-                   std::size_t stop) const {
+  // First slot of seg whose index is >= bound (indices ascend inside a segment).
+  int PrefixEnd(const Segment& seg, int bound) const {
+    return static_cast<int>(
+        std::lower_bound(order_.begin() + seg.begin, order_.begin() + seg.end, bound) -
+        order_.begin());
+  }
+
+  // Number of slots in [s0, s1) of the full arrays within the radius, stopping once it
+  // reaches `stop`. Same float expression as the reference: ((ex^2 + ey^2) + ez^2) < r^2.
+  std::size_t CountHits(float px, float py, float pz, int s0, int s1, std::size_t stop) const {
     const __m128 qx = _mm_set1_ps(px), qy = _mm_set1_ps(py), qz = _mm_set1_ps(pz);
     const __m128 r2 = _mm_set1_ps(r2_);
+    std::size_t count = 0;
     int s = s0;
     for (; s + 4 <= s1; s += 4) {
       const __m128 ex = _mm_sub_ps(qx, _mm_loadu_ps(&xs_[s]));
@@ -202,15 +405,45 @@ class BallQuery {
       const __m128 ez = _mm_sub_ps(qz, _mm_loadu_ps(&zs_[s]));
       const __m128 d2 =
           _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ex), _mm_mul_ps(ey, ey)), _mm_mul_ps(ez, ez));
-      const unsigned m = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(d2, r2)));
-      // Branch-free compaction (hits are dense in the shifted passes: a bit loop mispredicts).
-      for (int b = 0; b < 4; ++b) {
-        out[count] = order_[s + b];
-        count += (m >> b) & 1u;
-      }
+      static constexpr unsigned char kBits[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+      count += kBits[_mm_movemask_ps(_mm_cmplt_ps(d2, r2))];
       if (count >= stop) return count;
     }
-    for (; s < s1; ++s) count += Hit(px, py, pz, s, out + count);
+    for (; s < s1; ++s) count += Within(px, py, pz, xs_[s], ys_[s], zs_[s]) ? 1 : 0;
+    return count;
+  }
+
+  bool Within(float px, float py, float pz, float x, float y, float z) const {
+    const float ex = px - x;
+    const float ey = py - y;
+    const float ez = pz - z;
+    return ex * ex + ey * ey + ez * ez < r2_;
+  }
+
+  // Writes the ids of the slots in [s0, s1) of (x, y, z, id) within the radius to out, in
+  // slot order; returns their number. Four at a time, branch-free compaction.
+  std::size_t CompactHits(float px, float py, float pz, const float* x, const float* y,
+                          const float* z, const int* id, int s0, int s1, int* out) const {
+    const __m128 qx = _mm_set1_ps(px), qy = _mm_set1_ps(py), qz = _mm_set1_ps(pz);
+    const __m128 r2 = _mm_set1_ps(r2_);
+    std::size_t count = 0;
+    int s = s0;
+    for (; s + 4 <= s1; s += 4) {
+      const __m128 ex = _mm_sub_ps(qx, _mm_loadu_ps(x + s));
+      const __m128 ey = _mm_sub_ps(qy, _mm_loadu_ps(y + s));
+      const __m128 ez = _mm_sub_ps(qz, _mm_loadu_ps(z + s));
+      const __m128 d2 =
+          _mm_add_ps(_mm_add_ps(_mm_mul_ps(ex, ex), _mm_mul_ps(ey, ey)), _mm_mul_ps(ez, ez));
+      const unsigned mask = static_cast<unsigned>(_mm_movemask_ps(_mm_cmplt_ps(d2, r2)));
+      for (int b = 0; b < 4; ++b) {
+        out[count] = id[s + b];
+        count += (mask >> b) & 1u;
+      }
+    }
+    for (; s < s1; ++s) {
+      out[count] = id[s];
+      count += Within(px, py, pz, x[s], y[s], z[s]) ? 1 : 0;
+    }
     return count;
   }
 
@@ -224,13 +457,23 @@ class BallQuery {
   float r2_ = 0.f;
   double inv_cell_ = 0.0;
   std::vector<char> visited_;
-  std::vector<float> xs_, ys_, zs_;  // coordinates in order_ order
-  std::vector<int> order_;           // labelled point indices, cell-major, index order in a cell
-  std::vector<int> cell_of_;         // per point: its cell, -1 if unlabelled
-  std::vector<Cell> cells_;
-  std::unordered_map<CellKey, int, CellKeyHash> index_;
-  std::vector<int> near_;        // per cell: its occupied neighbour cells (CSR)
-  std::vector<int> near_begin_;  // cells_.size() + 1
+  // Labelled points, cell-major, by label in a cell, by index in a segment.
+  std::vector<float> xs_, ys_, zs_;
+  std::vector<int> order_;
+  // The unvisited points of each segment, in its first slots (any order).
+  std::vector<float> ux_, uy_, uz_;
+  std::vector<int> uorder_;
+  std::vector<int> slot_of_;  // per point: its slot in order_, -1 if unlabelled
+  std::vector<int> seg_of_;   // per point: its segment, -1 if unlabelled
+  std::vector<Segment> segs_;
+  std::vector<int> cell_seg_begin_;      // per cell: its first segment (cells + 1 entries)
+  std::vector<int> near_;                // per cell: its occupied neighbour cells (CSR)
+  std::vector<int> near_begin_;          // cells + 1
+  std::vector<std::size_t> near_total_;  // per cell: labelled points in its 27 cells
+  std::vector<int> span_hits_;
+  std::vector<Group> groups_;
+  std::vector<int> group_of_;  // per point: its sub-box
+  std::vector<int> sure_, maybe_;
 };
 
 void CheckClusterArgs(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& labels,
@@ -254,9 +497,17 @@ void CheckClusterArgs(const std::vector<Eigen::Vector3f>& points, const std::vec
     throw InvalidArgument("BfsClusters: max_neighbours must be >= 1, got " +
                           std::to_string(max_neighbours));
   }
+  // The voxel hash keys are 64-bit cell coordinates: |coordinate| / radius must stay far
+  // below 2^63.
+  const double limit = 1e15 * radius;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (labels[i] >= 0 && !points[i].allFinite()) {
+    if (labels[i] < 0) continue;
+    if (!points[i].allFinite()) {
       throw InvalidArgument("BfsClusters: point " + std::to_string(i) + " is not finite");
+    }
+    if (points[i].cast<double>().cwiseAbs().maxCoeff() > limit) {
+      throw InvalidArgument("BfsClusters: point " + std::to_string(i) +
+                            " is more than 1e15 radii from the origin");
     }
   }
 }
@@ -293,10 +544,8 @@ std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& po
                                           int min_points, int max_neighbours) {
   CheckClusterArgs(points, labels, radius, min_points, max_neighbours);
   BallQuery query(points, labels, radius, max_neighbours);
-  const std::size_t cap = static_cast<std::size_t>(max_neighbours);
   std::vector<std::vector<int>> clusters;
   std::vector<int> cluster;
-  std::vector<int> hits;
   std::vector<int> fresh;
   for (int seed = 0; seed < static_cast<int>(points.size()); ++seed) {
     if (labels[seed] < 0 || query.visited(seed)) continue;
@@ -306,29 +555,7 @@ std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& po
     // `cluster` doubles as the FIFO queue: pop order == push order.
     for (std::size_t head = 0; head < cluster.size(); ++head) {
       const int j = cluster[head];
-      if (!query.Query(j, points[j], &hits)) continue;
-      fresh.clear();
-      int min_fresh = std::numeric_limits<int>::max();
-      for (int k : hits) {
-        if (!query.visited(k) && labels[k] == labels[j]) {
-          fresh.push_back(k);
-          min_fresh = std::min(min_fresh, k);
-        }
-      }
-      if (fresh.empty()) continue;
-      if (hits.size() > cap) {
-        // The reference scans in index order and stops at the cap-th hit: a fresh k is a
-        // neighbour iff k <= the cap-th smallest hit index. Cheap exit first: if cap hits
-        // precede the smallest fresh index, none is.
-        std::size_t before = 0;
-        for (int k : hits) before += k < min_fresh ? 1 : 0;
-        if (before >= cap) continue;
-        std::nth_element(hits.begin(), hits.begin() + (cap - 1), hits.end());
-        const int last = hits[cap - 1];
-        fresh.erase(std::remove_if(fresh.begin(), fresh.end(), [last](int k) { return k > last; }),
-                    fresh.end());
-      }
-      std::sort(fresh.begin(), fresh.end());
+      query.Query(j, points[j], labels[j], &fresh);
       for (int k : fresh) {
         query.MarkVisited(k);
         cluster.push_back(k);

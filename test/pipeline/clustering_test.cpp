@@ -311,6 +311,53 @@ TEST(ClusterBfs, PairsJustInsideTheRadiusAcrossCellBoundaries) {
   }
 }
 
+// Shifted-offset blobs as the card's passes see them: thousands of points of a few labels
+// within a radius of each other, interleaved indices, so the cap binds and the labels compete
+// for the neighbour slots. Every pass and cap must give the reference's clusters exactly.
+TEST(ClusterBfs, DenseBlobsWithBindingCapMatchReference) {
+  std::mt19937 rng(17);
+  std::normal_distribution<float> g(0.f, 1.f);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  Points points;
+  std::vector<int> labels;
+  const struct {
+    float x, y, sigma;
+    int label, count;
+  } blobs[] = {{0.f, 0.f, 0.03f, 0, 1600},  {0.15f, 0.f, 0.05f, 1, 1200},
+               {0.f, 0.2f, 0.08f, 0, 1000}, {0.6f, 0.6f, 0.02f, 2, 900},
+               {0.7f, 0.62f, 0.1f, 3, 700}, {0.35f, 0.3f, 0.15f, 2, 600}};
+  for (const auto& b : blobs) {
+    for (int i = 0; i < b.count; ++i) {
+      points.emplace_back(b.x + b.sigma * g(rng), b.y + b.sigma * g(rng), 0.3f + b.sigma * g(rng));
+      labels.push_back(b.label);
+    }
+  }
+  for (int i = 0; i < 300; ++i) {  // sparse background, some unlabelled
+    points.emplace_back(1.2f * u(rng) - 0.2f, 1.2f * u(rng) - 0.2f, 0.6f * u(rng));
+    labels.push_back(static_cast<int>(u(rng) * 5.f) - 1);
+  }
+  std::vector<int> perm(points.size());
+  std::iota(perm.begin(), perm.end(), 0);
+  std::shuffle(perm.begin(), perm.end(), rng);
+  Points shuffled(points.size());
+  std::vector<int> shuffled_labels(points.size());
+  for (std::size_t i = 0; i < perm.size(); ++i) {
+    shuffled[i] = points[perm[i]];
+    shuffled_labels[i] = labels[perm[i]];
+  }
+  int cap_binding = 0;
+  for (double radius : {0.05, 0.12, 0.2, 0.3}) {
+    const Clusters uncapped = ReferenceBfs(shuffled, shuffled_labels, radius, 1, 1 << 30);
+    for (int cap : {500, 80}) {
+      const Clusters got = BfsClusters(shuffled, shuffled_labels, radius, 1, cap);
+      const Clusters want = ReferenceBfs(shuffled, shuffled_labels, radius, 1, cap);
+      ASSERT_EQ(got, want) << "r " << radius << " cap " << cap;
+      cap_binding += got != uncapped ? 1 : 0;
+    }
+  }
+  EXPECT_GE(cap_binding, 6);  // the test exercises the cap, not only plain BFS
+}
+
 TEST(ClusterBfs, RejectsBadArguments) {
   const Points points = {{0, 0, 0}, {1, 0, 0}};
   EXPECT_THROW(BfsClusters(points, {0}, 0.03, 1), InvalidArgument);
@@ -320,6 +367,10 @@ TEST(ClusterBfs, RejectsBadArguments) {
   EXPECT_THROW(BfsClusters(points, {0, 0}, 0.03, 1, 0), InvalidArgument);
   const Points bad = {{0, 0, 0}, {std::nanf(""), 0, 0}};
   EXPECT_THROW(BfsClusters(bad, {0, 0}, 0.03, 1), InvalidArgument);
+  // Far beyond the 64-bit cell keys: an error, not an overflowed key.
+  const Points far = {{0, 0, 0}, {0, 3e37f, 0}};
+  EXPECT_THROW(BfsClusters(far, {0, 0}, 0.03, 1), InvalidArgument);
+  EXPECT_NO_THROW(BfsClusters(far, {0, -1}, 0.03, 1));  // unlabelled points are not hashed
 }
 
 TEST(ClusterConfig, DefaultsTrainingAndValidate) {

@@ -8,7 +8,8 @@
 // and truncated after max_neighbours hits. BFS visits seeds in index order and follows an
 // edge j -> k only if label[k] == label[j]; visited points are never revisited (also those of
 // a cluster that is then dropped for being too small). The query runs on a uniform voxel hash
-// (cell = radius), so a pass is O(N * density), not O(N^2).
+// (cell = radius), so a pass is O(N * density), not O(N^2); see clustering.cpp (BallQuery)
+// for how it avoids the reference's full neighbour scans while giving the same clusters.
 #pragma once
 
 #include <Eigen/Core>
@@ -39,8 +40,10 @@ struct ClusteringConfig {
 // nor neighbours). Clusters come in seed order, each cluster's point indices in BFS visiting
 // order (neighbours of a popped point are pushed in increasing index order). Clusters with
 // fewer than min_points points are dropped. Throws dimr::InvalidArgument if the sizes differ,
-// a coordinate of a labelled point is not finite, radius is not finite or <= 0,
-// min_points < 1 or max_neighbours < 1.
+// a coordinate of a labelled point is not finite or more than 1e15 radii from the origin,
+// radius is not finite or <= 0, min_points < 1 or max_neighbours < 1. Cost: where the cap
+// cannot bind, the unvisited same-label points around each popped point; where it can, also
+// the hits below the first candidate whose rank is not settled by per-sub-box bounds.
 std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& points,
                                           const std::vector<int>& labels, double radius,
                                           int min_points, int max_neighbours = 1000);
