@@ -401,6 +401,46 @@ Eigen::MatrixXf BspModel::DecodePlanes(const Eigen::VectorXf& latent, int cad_cl
   return out;
 }
 
+std::vector<Eigen::MatrixXf> BspModel::DecodePlanesBatch(const Eigen::MatrixXf& latents,
+                                                         const std::vector<int>& classes) const {
+  const auto& c = impl_->config;
+  if (static_cast<std::size_t>(latents.rows()) != classes.size()) {
+    throw InvalidArgument("DecodePlanesBatch: " + std::to_string(latents.rows()) + " latents but " +
+                          std::to_string(classes.size()) + " classes");
+  }
+  if (latents.rows() > 0 && latents.cols() != c.latent_dim) {
+    throw InvalidArgument("DecodePlanesBatch: latents have " + std::to_string(latents.cols()) +
+                          " columns, expected " + std::to_string(c.latent_dim) + " (mu)");
+  }
+  for (std::size_t b = 0; b < classes.size(); ++b) {
+    const Eigen::VectorXf mu = latents.row(static_cast<Eigen::Index>(b)).transpose();
+    CheckLatent(c, mu, classes[b], ("DecodePlanesBatch: code " + std::to_string(b)).c_str());
+  }
+  std::vector<Eigen::MatrixXf> out;
+  if (classes.empty()) return out;
+  const int64_t B = static_cast<int64_t>(classes.size());
+  torch::NoGradGuard no_grad;
+  impl_->net->eval();
+  const Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> rows = latents;
+  auto z = torch::from_blob(const_cast<float*>(rows.data()), {B, c.latent_dim}, torch::kFloat)
+               .clone()
+               .to(impl_->device);
+  std::vector<int64_t> cls64(classes.begin(), classes.end());
+  auto cls = torch::tensor(cls64, torch::kLong).to(impl_->device);
+  auto planes = impl_->net->Planes(z, cls).to(torch::kCPU).contiguous();  // [B, 4, P]
+  const float* p = planes.data_ptr<float>();
+  out.reserve(classes.size());
+  for (int64_t b = 0; b < B; ++b) {
+    Eigen::MatrixXf m(c.num_planes, 4);
+    const float* pb = p + b * 4 * c.num_planes;
+    for (int k = 0; k < 4; ++k) {
+      for (int i = 0; i < c.num_planes; ++i) m(i, k) = pb[k * c.num_planes + i];
+    }
+    out.push_back(std::move(m));
+  }
+  return out;
+}
+
 std::vector<std::vector<int>> BspModel::ConvexPlanes() const {
   auto T = impl_->net->generator->convex_layer_weights.detach().to(torch::kCPU).contiguous();
   const auto& c = impl_->config;

@@ -95,6 +95,22 @@ Eigen::MatrixXf BspDecoder::Planes(const Eigen::VectorXf& code, int cad_class) c
   return impl_->model.DecodePlanes(mu, cad_class);
 }
 
+std::vector<Eigen::MatrixXf> BspDecoder::PlanesBatch(const std::vector<Eigen::VectorXf>& codes,
+                                                     const std::vector<int>& cad_classes) const {
+  if (codes.size() != cad_classes.size()) {
+    throw InvalidArgument("BspDecoder::PlanesBatch: " + std::to_string(codes.size()) +
+                          " codes but " + std::to_string(cad_classes.size()) + " classes");
+  }
+  Eigen::MatrixXf mu(static_cast<Eigen::Index>(codes.size()), latent_dim());
+  for (std::size_t b = 0; b < codes.size(); ++b) {
+    const std::string what = "PlanesBatch (code " + std::to_string(b) + ")";
+    mu.row(static_cast<Eigen::Index>(b)) = MuOf(codes[b], cad_classes[b], what.c_str()).transpose();
+  }
+  if (codes.empty()) return {};
+  std::lock_guard<std::mutex> lock(impl_->net_mutex);
+  return impl_->model.DecodePlanesBatch(mu, cad_classes);
+}
+
 BspMeshResult BspDecoder::MeshFromPlanes(const Eigen::MatrixXf& planes) const {
   return ExtractBspMesh(planes, impl_->convexes, impl_->options);
 }

@@ -5,8 +5,11 @@
 #include <filesystem>
 #include <map>
 #include <mutex>
+#include <string>
 #include <utility>
+#include <vector>
 
+#include "dimr/core/parallel.h"
 #include "dimr/core/timing.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/hash.h"
@@ -67,18 +70,22 @@ struct Reconstructor::Impl {
     return -1;
   }
 
-  void MakeShape(InstanceResult* inst, const std::vector<geometry::Vec3>& target,
-                 ReconstructionMode mode, int k, int samples, SceneResult* result) const;
+  // The shapes of `insts` (targets[i]: the points instance i's ICP aligns to): codes chosen per
+  // mode (pool look-ups), every code's planes in one batched network call ("decode"), then per
+  // instance, on `threads` threads (plain C++, no network call), mesh extraction and placement
+  // ("mesh") and ICP ("icp"). Per-instance timings and warnings are merged in instance order,
+  // so the result does not depend on the thread count.
+  void MakeShapes(std::vector<InstanceResult>* insts,
+                  const std::vector<std::vector<geometry::Vec3>>& targets, ReconstructionMode mode,
+                  int k, int samples, SceneResult* result) const;
 
-  // Decodes `code` (mu used) and places it by `box`; times "decode" and "mesh".
-  geometry::TriangleMesh DecodePlaced(const Eigen::VectorXf& code, int cad_class,
-                                      const geometry::OrientedBox& box, Timings* t) const {
-    Eigen::MatrixXf planes;
-    {
-      ScopedTimer s(t, "decode");
-      planes = decoder.Planes(code, cad_class);
-    }
-    ScopedTimer s(t, "mesh");
+  // Threads of the per-instance shape work: the config's network thread count, else the
+  // hardware's.
+  int ShapeThreads() const { return ResolveThreads(config.threads); }
+
+  // The canonical mesh of decoded planes, placed by `box` (scaled by decoded_mesh_scale).
+  geometry::TriangleMesh PlacedFromPlanes(const Eigen::MatrixXf& planes,
+                                          const geometry::OrientedBox& box) const {
     geometry::OrientedBox scaled = box;
     scaled.size *= config.decoded_mesh_scale;
     return PlaceCanonicalMesh(decoder.MeshFromPlanes(planes).mesh, scaled);
@@ -145,89 +152,137 @@ int Reconstructor::pool_meshes() const { return impl_->pool ? impl_->pool->NumWi
 const ShapePool* Reconstructor::pool() const { return impl_->pool.get(); }
 const ReconstructorConfig& Reconstructor::config() const { return impl_->config; }
 
-void Reconstructor::Impl::MakeShape(InstanceResult* inst, const std::vector<geometry::Vec3>& target,
-                                    ReconstructionMode mode, int k, int samples,
-                                    SceneResult* result) const {
-  Timings* t = &result->timings;
-  const int d = inst->id;
-  inst->mesh = geometry::TriangleMesh();
-  inst->neighbours.clear();
-  inst->pool_model_id.clear();
-  inst->shape_code.resize(0);
-  inst->alternatives.clear();
-  inst->icp_accepted = false;
-  inst->icp_transform.setIdentity();
-  switch (mode) {
-    case ReconstructionMode::kGeneration:
-      inst->source = MeshSource::kGenerated;
-      inst->shape_code = inst->latent;
-      inst->mesh = DecodePlaced(inst->latent, inst->cad_class, inst->box, t);
-      break;
-    case ReconstructionMode::kProjection: {
-      inst->source = MeshSource::kProjected;
-      Projection proj;
-      {
-        ScopedTimer s(t, "pool");
-        proj = pool->Project(inst->latent, inst->cad_class, k);
-      }
-      inst->shape_code = proj.code;
-      for (int n : proj.neighbors) {
-        inst->neighbours.push_back(pool->entries()[static_cast<std::size_t>(n)].model_id);
-      }
-      if (!inst->neighbours.empty()) inst->pool_model_id = inst->neighbours.front();
-      inst->mesh = DecodePlaced(proj.code, inst->cad_class, inst->box, t);
-      break;
-    }
-    case ReconstructionMode::kRetrieval: {
-      inst->source = MeshSource::kRetrieved;
-      int index;
-      {
-        ScopedTimer s(t, "pool");
-        index = NearestWithMesh(inst->latent, inst->cad_class);
-      }
-      if (index < 0) {
-        result->warnings.push_back("instance " + std::to_string(d) +
-                                   ": no pool entry of its class has a CAD mesh; no mesh");
+void Reconstructor::Impl::MakeShapes(std::vector<InstanceResult>* insts,
+                                     const std::vector<std::vector<geometry::Vec3>>& targets,
+                                     ReconstructionMode mode, int k, int samples,
+                                     SceneResult* result) const {
+  const std::size_t n = insts->size();
+  // Per instance: which planes (index into the batch) or pool CAD mesh it gets, and its own
+  // timings and warnings (merged in order at the end).
+  struct Job {
+    int planes = -1;                 // main shape's planes, -1: none
+    int cad = -1;                    // retrieval: pool entry of the CAD mesh, -1: none
+    std::vector<int> sample_planes;  // planes of each alternative
+    Timings timings;
+    std::vector<std::string> warnings;
+  };
+  std::vector<Job> jobs(n);
+  std::vector<Eigen::VectorXf> codes;
+  std::vector<int> classes;
+  auto add_code = [&](const Eigen::VectorXf& code, int cad_class) {
+    codes.push_back(code);
+    classes.push_back(cad_class);
+    return static_cast<int>(codes.size()) - 1;
+  };
+  const int d_lat = decoder.latent_dim();
+  for (std::size_t i = 0; i < n; ++i) {
+    InstanceResult* inst = &(*insts)[i];
+    Job& job = jobs[i];
+    const int d = inst->id;
+    inst->mesh = geometry::TriangleMesh();
+    inst->neighbours.clear();
+    inst->pool_model_id.clear();
+    inst->shape_code.resize(0);
+    inst->alternatives.clear();
+    inst->icp_accepted = false;
+    inst->icp_transform.setIdentity();
+    switch (mode) {
+      case ReconstructionMode::kGeneration:
+        inst->source = MeshSource::kGenerated;
+        inst->shape_code = inst->latent;
+        job.planes = add_code(inst->latent, inst->cad_class);
+        break;
+      case ReconstructionMode::kProjection: {
+        inst->source = MeshSource::kProjected;
+        Projection proj;
+        {
+          ScopedTimer s(&job.timings, "pool");
+          proj = pool->Project(inst->latent, inst->cad_class, k);
+        }
+        inst->shape_code = proj.code;
+        for (int nb : proj.neighbors) {
+          inst->neighbours.push_back(pool->entries()[static_cast<std::size_t>(nb)].model_id);
+        }
+        if (!inst->neighbours.empty()) inst->pool_model_id = inst->neighbours.front();
+        job.planes = add_code(proj.code, inst->cad_class);
         break;
       }
-      const PoolEntry& e = pool->entries()[static_cast<std::size_t>(index)];
-      inst->pool_model_id = e.model_id;
-      inst->neighbours = {e.model_id};
-      ScopedTimer s(t, "mesh");
-      inst->mesh = PlaceRetrievedMesh(*CadMesh(index), inst->box);
-      break;
+      case ReconstructionMode::kRetrieval: {
+        inst->source = MeshSource::kRetrieved;
+        {
+          ScopedTimer s(&job.timings, "pool");
+          job.cad = NearestWithMesh(inst->latent, inst->cad_class);
+        }
+        if (job.cad < 0) {
+          job.warnings.push_back("instance " + std::to_string(d) +
+                                 ": no pool entry of its class has a CAD mesh; no mesh");
+          break;
+        }
+        const PoolEntry& e = pool->entries()[static_cast<std::size_t>(job.cad)];
+        inst->pool_model_id = e.model_id;
+        inst->neighbours = {e.model_id};
+        break;
+      }
+    }
+    // Alternative shapes sampled from sigma (decoded, as generation).
+    for (int j = 0; j < samples && inst->latent.size() == 2 * d_lat; ++j) {
+      ShapeHypothesis h;
+      h.source = MeshSource::kGenerated;
+      const std::uint64_t seed = config.seed * 0x9e3779b97f4a7c15ull +
+                                 static_cast<std::uint64_t>(d) * 1000003ull +
+                                 static_cast<std::uint64_t>(j) + 1;
+      h.latent = SampleCode(inst->latent, seed);
+      const Eigen::ArrayXf sigma = (0.5f * inst->latent.tail(d_lat).array()).exp();
+      const Eigen::ArrayXf eps = (h.latent.head(d_lat) - inst->latent.head(d_lat)).array() / sigma;
+      h.score = inst->score * std::exp(-0.5 * static_cast<double>(eps.square().sum()) / d_lat);
+      job.sample_planes.push_back(add_code(h.latent, inst->cad_class));
+      inst->alternatives.push_back(std::move(h));
     }
   }
-  if (inst->mesh.empty()) {
-    result->warnings.push_back("instance " + std::to_string(d) + " (class " +
-                               std::to_string(inst->cad_class) + "): the shape has no mesh");
+  std::vector<Eigen::MatrixXf> planes;
+  if (!codes.empty()) {
+    ScopedTimer s(&result->timings, "decode");
+    planes = decoder.PlanesBatch(codes, classes);
   }
-  if (config.icp.enabled && !inst->mesh.empty()) {
-    ScopedTimer s(t, "icp");
-    IcpConfig icp = config.icp;
-    icp.seed = config.seed ^ static_cast<std::uint64_t>(d);
-    const IcpResult r = RefineMeshByIcp(&inst->mesh, target, icp);
-    inst->icp_accepted = r.ran && r.accepted;
-    if (inst->icp_accepted) inst->icp_transform = r.transform;
-  }
-  // Alternative shapes sampled from sigma (decoded, as generation).
-  const int d_lat = decoder.latent_dim();
-  for (int j = 0; j < samples && inst->latent.size() == 2 * d_lat; ++j) {
-    ShapeHypothesis h;
-    h.source = MeshSource::kGenerated;
-    const std::uint64_t seed = config.seed * 0x9e3779b97f4a7c15ull +
-                               static_cast<std::uint64_t>(d) * 1000003ull +
-                               static_cast<std::uint64_t>(j) + 1;
-    h.latent = SampleCode(inst->latent, seed);
-    const Eigen::ArrayXf sigma = (0.5f * inst->latent.tail(d_lat).array()).exp();
-    const Eigen::ArrayXf eps = (h.latent.head(d_lat) - inst->latent.head(d_lat)).array() / sigma;
-    h.score = inst->score * std::exp(-0.5 * static_cast<double>(eps.square().sum()) / d_lat);
-    h.mesh = DecodePlaced(h.latent, inst->cad_class, inst->box, t);
-    if (config.icp.enabled && !h.mesh.empty()) {
-      ScopedTimer s(t, "icp");
-      RefineMeshByIcp(&h.mesh, target, config.icp);
+  ParallelFor(n, ShapeThreads(), [&](std::size_t i) {
+    InstanceResult* inst = &(*insts)[i];
+    Job& job = jobs[i];
+    const int d = inst->id;
+    if (job.planes >= 0) {
+      ScopedTimer s(&job.timings, "mesh");
+      inst->mesh = PlacedFromPlanes(planes[static_cast<std::size_t>(job.planes)], inst->box);
+    } else if (job.cad >= 0) {
+      ScopedTimer s(&job.timings, "mesh");
+      inst->mesh = PlaceRetrievedMesh(*CadMesh(job.cad), inst->box);
     }
-    inst->alternatives.push_back(std::move(h));
+    if (inst->mesh.empty()) {
+      job.warnings.push_back("instance " + std::to_string(d) + " (class " +
+                             std::to_string(inst->cad_class) + "): the shape has no mesh");
+    }
+    if (config.icp.enabled && !inst->mesh.empty()) {
+      ScopedTimer s(&job.timings, "icp");
+      IcpConfig icp = config.icp;
+      icp.seed = config.seed ^ static_cast<std::uint64_t>(d);
+      const IcpResult r = RefineMeshByIcp(&inst->mesh, targets[i], icp);
+      inst->icp_accepted = r.ran && r.accepted;
+      if (inst->icp_accepted) inst->icp_transform = r.transform;
+    }
+    for (std::size_t j = 0; j < job.sample_planes.size(); ++j) {
+      ShapeHypothesis& h = inst->alternatives[j];
+      {
+        ScopedTimer s(&job.timings, "mesh");
+        h.mesh =
+            PlacedFromPlanes(planes[static_cast<std::size_t>(job.sample_planes[j])], inst->box);
+      }
+      if (config.icp.enabled && !h.mesh.empty()) {
+        ScopedTimer s(&job.timings, "icp");
+        RefineMeshByIcp(&h.mesh, targets[i], config.icp);
+      }
+    }
+  });
+  for (Job& job : jobs) {
+    result->timings.Merge(job.timings);
+    for (std::string& w : job.warnings) result->warnings.push_back(std::move(w));
   }
 }
 
@@ -249,11 +304,10 @@ SceneResult Reconstructor::Remesh(const SceneResult& scene, const PointCloudInpu
   out.input_points = scene.input_points;
   out.used_points = scene.used_points;
   out.warnings = scene.warnings;
-  std::vector<geometry::Vec3> target;
+  std::vector<std::vector<geometry::Vec3>> targets;
   for (const InstanceResult& in : scene.instances) {
-    InstanceResult inst = in;
-    target.clear();
-    for (int p : inst.support) {
+    std::vector<geometry::Vec3>& target = targets.emplace_back();
+    for (int p : in.support) {
       if (p < 0 || static_cast<std::size_t>(p) >= input.size()) {
         throw InvalidArgument("Remesh: support index " + std::to_string(p) +
                               " outside the input cloud (" + std::to_string(input.size()) +
@@ -261,9 +315,9 @@ SceneResult Reconstructor::Remesh(const SceneResult& scene, const PointCloudInpu
       }
       target.push_back(input.points[static_cast<std::size_t>(p)].cast<double>());
     }
-    impl_->MakeShape(&inst, target, mode, k, cfg.samples, &out);
-    out.instances.push_back(std::move(inst));
   }
+  out.instances = scene.instances;
+  impl_->MakeShapes(&out.instances, targets, mode, k, cfg.samples, &out);
   return out;
 }
 
@@ -370,24 +424,24 @@ SceneResult Reconstructor::Reconstruct(const PointCloudInput& input) const {
   }
 
   // ---- shapes, placement, ICP.
-  std::vector<geometry::Vec3> target;
+  std::vector<std::vector<geometry::Vec3>> targets(dets.size());
+  result.instances.resize(dets.size());
   for (std::size_t d = 0; d < dets.size(); ++d) {
     const Stage2Detection& det = dets[d];
-    InstanceResult inst;
+    InstanceResult& inst = result.instances[d];
     inst.id = static_cast<int>(d);
     inst.cad_class = det.cad_class;
     inst.score = det.score;
     inst.box = cfg.box_residual ? det.box : ProposalBox(det.frame);
     inst.latent = det.code;
     inst.support.reserve(det.points.size());
-    target.clear();
+    targets[d].reserve(det.points.size());
     for (int p : det.points) {
       inst.support.push_back(to_input[static_cast<std::size_t>(p)]);
-      target.push_back(cloud.points[static_cast<std::size_t>(p)].cast<double>());
+      targets[d].push_back(cloud.points[static_cast<std::size_t>(p)].cast<double>());
     }
-    impl_->MakeShape(&inst, target, cfg.mode, cfg.k, cfg.samples, &result);
-    result.instances.push_back(std::move(inst));
   }
+  impl_->MakeShapes(&result.instances, targets, cfg.mode, cfg.k, cfg.samples, &result);
   return result;
 }
 

@@ -5,6 +5,7 @@
 #include <atomic>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <string>
 #include <thread>
@@ -144,6 +145,47 @@ TEST(BspDecoder, EncodeMeshIsBoxNormalisedAndDecodesBack) {
   EXPECT_EQ(refined.tail(d.latent_dim()), code.tail(d.latent_dim()));  // logvar kept
   EXPECT_GE(OccupancyIoU(d.Occupancy(refined, kCabinet, BspGridCenters(32)), sample.iou_grid),
             iou - 0.02);
+}
+
+// One batched network call for several codes: each entry is the single call's planes up to float
+// rounding, repeatable bit for bit, and bad entries are named by index.
+TEST(BspDecoder, PlanesBatchMatchesSingleCalls) {
+  const BspDecoder& d = Decoder();
+  const ShapePool pool = ShapePool::Load(kPool);
+  std::vector<Eigen::VectorXf> codes;
+  std::vector<int> classes;
+  for (std::size_t i = 0; i < 9; ++i) {
+    const PoolEntry& e = pool.entries()[i * pool.size() / 9];
+    codes.push_back(i % 2 ? e.code : Eigen::VectorXf(e.code.head(d.latent_dim())));
+    classes.push_back(e.cad_class);
+  }
+  const std::vector<Eigen::MatrixXf> batch = d.PlanesBatch(codes, classes);
+  ASSERT_EQ(batch.size(), codes.size());
+  for (std::size_t i = 0; i < codes.size(); ++i) {
+    const Eigen::MatrixXf single = d.Planes(codes[i], classes[i]);
+    ASSERT_EQ(batch[i].rows(), single.rows());
+    ASSERT_EQ(batch[i].cols(), 4);
+    const float scale = single.cwiseAbs().maxCoeff();
+    EXPECT_GT(scale, 0.1f);
+    EXPECT_LT((batch[i] - single).cwiseAbs().maxCoeff(), 1e-5f * scale) << i;
+  }
+  const std::vector<Eigen::MatrixXf> again = d.PlanesBatch(codes, classes);
+  for (std::size_t i = 0; i < codes.size(); ++i) EXPECT_TRUE(batch[i] == again[i]) << i;
+  // Different codes give different planes (not one row copied).
+  EXPECT_GT((batch[0] - batch[1]).cwiseAbs().maxCoeff(), 1e-3f);
+  EXPECT_TRUE(d.PlanesBatch({}, {}).empty());
+  EXPECT_THROW(d.PlanesBatch(codes, {0}), InvalidArgument);
+  std::vector<Eigen::VectorXf> bad = codes;
+  bad[3](5) = std::numeric_limits<float>::quiet_NaN();
+  try {
+    d.PlanesBatch(bad, classes);
+    ADD_FAILURE() << "a NaN code was decoded";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("code 3"), std::string::npos) << e.what();
+  }
+  std::vector<int> bad_classes = classes;
+  bad_classes[2] = 8;
+  EXPECT_THROW(d.PlanesBatch(codes, bad_classes), InvalidArgument);
 }
 
 TEST(BspDecoder, ConstCallsMayRunConcurrently) {

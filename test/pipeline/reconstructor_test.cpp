@@ -197,6 +197,49 @@ TEST_F(ReconstructorRoom, EachModeGivesItsSource) {
   }
 }
 
+// The per-object shape work (one batched decode, then mesh extraction and ICP per object on the
+// config's threads) gives the same scene at 1 and 2 threads, bit for bit: meshes, alternatives,
+// ICP decisions, warnings and the timed stages; also under Remesh (projection).
+TEST_F(ReconstructorRoom, ShapesDoNotDependOnTheThreadCount) {
+  ReconstructorConfig cfg = rec_->config();
+  cfg.samples = 1;
+  std::vector<SceneResult> runs, remeshed;
+  for (int threads : {1, 2}) {
+    cfg.threads = threads;
+    const Reconstructor rec(cfg);
+    runs.push_back(rec.Reconstruct(Input()));
+    remeshed.push_back(rec.Remesh(runs.back(), Input(), ReconstructionMode::kProjection, 2));
+  }
+  for (const auto* pair : {&runs, &remeshed}) {
+    const SceneResult& a = (*pair)[0];
+    const SceneResult& b = (*pair)[1];
+    ASSERT_GE(a.instances.size(), 3u);
+    ASSERT_EQ(a.instances.size(), b.instances.size());
+    EXPECT_EQ(a.warnings, b.warnings);
+    for (const char* stage : {"decode", "mesh", "icp"}) {
+      EXPECT_TRUE(a.timings.has(stage) && b.timings.has(stage)) << stage;
+    }
+    int accepted = 0;
+    for (std::size_t i = 0; i < a.instances.size(); ++i) {
+      const InstanceResult& x = a.instances[i];
+      const InstanceResult& y = b.instances[i];
+      EXPECT_EQ(x.cad_class, y.cad_class);
+      EXPECT_EQ(x.score, y.score);
+      EXPECT_EQ(x.neighbours, y.neighbours);
+      EXPECT_EQ(x.icp_accepted, y.icp_accepted);
+      EXPECT_TRUE(x.icp_transform.isApprox(y.icp_transform, 0.0)) << i;
+      accepted += x.icp_accepted;
+      ASSERT_FALSE(x.mesh.empty()) << i;
+      EXPECT_EQ(x.mesh.vertices, y.mesh.vertices) << i;
+      EXPECT_EQ(x.mesh.faces, y.mesh.faces) << i;
+      ASSERT_EQ(x.alternatives.size(), 1u);
+      ASSERT_EQ(y.alternatives.size(), 1u);
+      EXPECT_EQ(x.alternatives[0].mesh.vertices, y.alternatives[0].mesh.vertices) << i;
+    }
+    EXPECT_GT(accepted, 0);
+  }
+}
+
 TEST_F(ReconstructorRoom, RetrievalReturnsTheRoomsOwnCadModelWhenItIsInThePool) {
   // A pool of the room's own CAD models (encoded by the BSP encoder, meshes from the split's
   // ShapeNet tree) plus the shipped pool as distractors.

@@ -132,6 +132,12 @@ class BspModel {
   // Decoder in eval mode: P x 4 plane coefficients (a, b, c, d); inside a plane iff
   // a*x + b*y + c*z + d <= 0.
   Eigen::MatrixXf DecodePlanes(const Eigen::VectorXf& latent, int cad_class) const;
+  // DecodePlanes of many codes in one network call: latents B x latent_dim (one mu per row),
+  // classes[b] the class of row b. Entry b equals DecodePlanes(row b, classes[b]) up to float
+  // rounding (a batched matrix product may sum in another order than a single row's).
+  // Throws dimr::InvalidArgument for mismatched sizes, a non-finite code or a bad class.
+  std::vector<Eigen::MatrixXf> DecodePlanesBatch(const Eigen::MatrixXf& latents,
+                                                 const std::vector<int>& classes) const;
   // For each convex, the planes it uses (convex_layer_weights > 0.01).
   std::vector<std::vector<int>> ConvexPlanes() const;
   // Occupancy (discrete BSP, inside iff min over convexes of the summed plane excess < 0.01)

@@ -89,6 +89,12 @@ class BspDecoder {
   // dimr::InvalidArgument for a code of another size than latent_dim or 2 * latent_dim, a
   // non-finite code or a class outside [0, num_classes).
   Eigen::MatrixXf Planes(const Eigen::VectorXf& code, int cad_class) const;
+  // Planes of many codes in one network call (one lock, LibTorch's threads on one batched
+  // product): entry b is Planes(codes[b], cad_classes[b]) up to float rounding (the batched
+  // product may sum in another order), and the same batch always gives the same planes. Throws
+  // as Planes, naming the code's index, or for sizes that differ.
+  std::vector<Eigen::MatrixXf> PlanesBatch(const std::vector<Eigen::VectorXf>& codes,
+                                           const std::vector<int>& cad_classes) const;
   // The mesh of the code: closed convex polytopes (concatenated, possibly overlapping) in the
   // normalised canonical frame, inside [-1, 1]^3; empty when the code decodes to nothing.
   geometry::TriangleMesh Mesh(const Eigen::VectorXf& code, int cad_class) const;

@@ -16,6 +16,10 @@
 // pool codes; retrieval: the nearest pool CAD mesh) -> placement by the box -> ICP against the
 // proposal's points (accepted iff |roll|, |pitch| <= icp.max_tilt_deg) -> input frame.
 // Optional alternative shapes: `samples` codes drawn from the predicted sigma per object.
+// The shapes: all objects' codes decoded to planes in one batched network call, then mesh
+// extraction, placement and ICP per object on `threads` threads (0: the hardware's), merged in
+// object order, so the result does not depend on the thread count. The "mesh" and "icp"
+// timings are summed over objects (over threads when several run).
 //
 // Thread safety: Reconstruct() is const but the networks are not safe to run from two threads
 // at once: use one Reconstructor per thread (e.g. the ROS node's worker thread owns one).
