@@ -181,6 +181,21 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                   return "";
                 },
                 [](const C& c) { return !c.class_bias.empty(); }})
+          .Add({"colour_norm", "",
+                "per-scene colour standardisation to the training rooms: mean r,g,b then std "
+                "r,g,b in [0, 1] units (dimr stage1 colour-stats), or none",
+                false,
+                [](const C& c) { return c.colour_norm ? c.colour_target.ToString() : "none"; },
+                [](C& c, const std::string& v) -> std::string {
+                  try {
+                    c.colour_norm = ColourStats::Parse(v, &c.colour_target);
+                  } catch (const InvalidArgument& e) {
+                    return e.what();
+                  }
+                  return "";
+                },
+                [](const C&) -> std::string { return ""; },
+                [](const C& c) { return c.colour_norm; }})
           .Add({"vote_exclude", "",
                 "RFS classes kept out of the semantic vote (comma-separated names, e.g. "
                 "picture,display), or none",
@@ -366,7 +381,14 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
   Stage1Result r;
   ScopedTimer total(&r.timings, "network");
   nn::Stage1Timing t;
-  const nn::ScenePoints view(input.points, uses_color() ? &input.colors : nullptr, input.name);
+  // Colour standardisation (colour_norm.h) on a copy; the caller's colours stay as they are.
+  std::vector<Eigen::Vector3f> standardised;
+  if (uses_color() && impl_->config.colour_norm) {
+    standardised = StandardiseColours(input.colors, impl_->config.colour_target);
+  }
+  const std::vector<Eigen::Vector3f>* colours =
+      !uses_color() ? nullptr : (impl_->config.colour_norm ? &standardised : &input.colors);
+  const nn::ScenePoints view(input.points, colours, input.name);
   nn::Stage1Output out = impl_->model->PredictAugmented(view, impl_->config.rotations,
                                                         impl_->config.mirror, with_features, &t);
   total.Stop();

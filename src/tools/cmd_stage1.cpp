@@ -24,6 +24,7 @@
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/calibration.h"
+#include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/model_card.h"
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "tools/command_registry.h"
@@ -807,6 +808,68 @@ void SetupAverage(CLI::App& app) {
   });
 }
 
+// ---------------------------------------------------------------- colour-stats
+// The training rooms' colour statistics: the target of the per-scene colour standardisation
+// (pipeline/colour_norm.h), printed as the model card's `colour_norm=` value.
+void SetupColourStats(CLI::App& app) {
+  struct Args {
+    std::string scans, json;
+    int limit = 0, threads = 2;
+  };
+  auto a = std::make_shared<Args>();
+  app.add_option("--scans", a->scans,
+                 "training scenes: scans folder or `dimr stage1 prepare` cache")
+      ->required();
+  app.add_option("--limit", a->limit, "first N scenes only");
+  app.add_option("--threads", a->threads, "threads reading scene folders");
+  app.add_option("--json", a->json, "write the per-room and average statistics as JSON");
+  app.callback([a] {
+    const auto scenes = LoadScenes(a->scans, a->limit, a->threads);
+    std::vector<pipeline::ColourStats> rooms;
+    nlohmann::json j_rooms = nlohmann::json::array();
+    for (const auto& s : scenes) {
+      if (s.colors.empty()) throw InvalidArgument("scene '" + s.name + "' has no colours");
+      rooms.push_back(pipeline::MeasureColourStats(s.colors));
+      j_rooms.push_back(
+          {{"scene", s.name},
+           {"mean", {rooms.back().mean.x(), rooms.back().mean.y(), rooms.back().mean.z()}},
+           {"std", {rooms.back().std.x(), rooms.back().std.y(), rooms.back().std.z()}}});
+    }
+    const pipeline::ColourStats avg = pipeline::AverageRoomColourStats(rooms);
+    Eigen::Vector3f lo_m = rooms[0].mean, hi_m = rooms[0].mean, lo_s = rooms[0].std,
+                    hi_s = rooms[0].std;
+    for (const auto& r : rooms) {
+      lo_m = lo_m.cwiseMin(r.mean);
+      hi_m = hi_m.cwiseMax(r.mean);
+      lo_s = lo_s.cwiseMin(r.std);
+      hi_s = hi_s.cwiseMax(r.std);
+    }
+    std::printf("%zu rooms of %s ([0, 1] units)\n", rooms.size(), a->scans.c_str());
+    std::printf("| | r | g | b |\n|---|---|---|---|\n");
+    std::printf("| mean of room means | %.4f | %.4f | %.4f |\n", avg.mean.x(), avg.mean.y(),
+                avg.mean.z());
+    std::printf("| room means, min - max | %.3f - %.3f | %.3f - %.3f | %.3f - %.3f |\n", lo_m.x(),
+                hi_m.x(), lo_m.y(), hi_m.y(), lo_m.z(), hi_m.z());
+    std::printf("| mean of room stds | %.4f | %.4f | %.4f |\n", avg.std.x(), avg.std.y(),
+                avg.std.z());
+    std::printf("| room stds, min - max | %.3f - %.3f | %.3f - %.3f | %.3f - %.3f |\n", lo_s.x(),
+                hi_s.x(), lo_s.y(), hi_s.y(), lo_s.z(), hi_s.z());
+    std::printf("colour_norm=%s\n", avg.ToString().c_str());
+    if (!a->json.empty()) {
+      std::ofstream f(a->json);
+      if (!f) throw Error("cannot write '" + a->json + "'");
+      f << nlohmann::json{{"scans", a->scans}, {"colour_norm", avg.ToString()}, {"rooms", j_rooms}}
+               .dump(2)
+        << "\n";
+    }
+  });
+}
+
+const Registrar kColourStats(
+    "stage1", "colour-stats",
+    "Colour mean / spread of the training rooms: the model card's colour_norm target "
+    "(per-scene colour standardisation of real scans)",
+    &SetupColourStats);
 const Registrar kTrain("train", "stage1", "Train the stage-1 point-wise network", &SetupTrain);
 const Registrar kEval("stage1", "eval",
                       "Stage-1 metrics: semantic mIoU (25 classes) and instance AP (8 CAD classes)",
