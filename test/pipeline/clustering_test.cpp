@@ -268,7 +268,9 @@ TEST(ClusterBfs, MatchesBruteForceReferenceOnRandomInputs) {
     const double radius = std::array<double, 3>{0.01, 0.03, 0.05}[trial % 3];
     const int cap = std::array<int, 4>{1000, 8, 3, 1}[trial % 4];
     const int min_points = trial % 2 == 0 ? 1 : 5;
+    const bool before = SetClusteringAvx2(trial % 2 == 0);  // both SIMD paths
     const Clusters got = BfsClusters(points, labels, radius, min_points, cap);
+    SetClusteringAvx2(before);
     const Clusters want = ReferenceBfs(points, labels, radius, min_points, cap);
     ASSERT_EQ(got, want) << "trial " << trial << " r " << radius << " cap " << cap;
     compared_clusters += static_cast<int>(got.size());
@@ -305,8 +307,12 @@ TEST(ClusterBfs, PairsJustInsideTheRadiusAcrossCellBoundaries) {
       labels.push_back(i);
       labels.push_back(i);
     }
+    const Clusters want = ReferenceBfs(points, labels, radius, 2, 1000);
     const Clusters got = BfsClusters(points, labels, radius, 2);
-    EXPECT_EQ(got, ReferenceBfs(points, labels, radius, 2, 1000)) << radius;
+    EXPECT_EQ(got, want) << radius;
+    const bool before = SetClusteringAvx2(false);
+    EXPECT_EQ(BfsClusters(points, labels, radius, 2), want) << radius << " sse2";
+    SetClusteringAvx2(before);
     EXPECT_GT(got.size(), 290u) << radius;
   }
 }
@@ -349,13 +355,18 @@ TEST(ClusterBfs, DenseBlobsWithBindingCapMatchReference) {
   for (double radius : {0.05, 0.12, 0.2, 0.3}) {
     const Clusters uncapped = ReferenceBfs(shuffled, shuffled_labels, radius, 1, 1 << 30);
     for (int cap : {500, 80}) {
-      const Clusters got = BfsClusters(shuffled, shuffled_labels, radius, 1, cap);
       const Clusters want = ReferenceBfs(shuffled, shuffled_labels, radius, 1, cap);
-      ASSERT_EQ(got, want) << "r " << radius << " cap " << cap;
-      cap_binding += got != uncapped ? 1 : 0;
+      // Every SIMD path this CPU can run (the AVX2 one is skipped where there is none).
+      for (bool avx2 : {true, false}) {
+        const bool before = SetClusteringAvx2(avx2);
+        const Clusters got = BfsClusters(shuffled, shuffled_labels, radius, 1, cap);
+        SetClusteringAvx2(before);
+        ASSERT_EQ(got, want) << "r " << radius << " cap " << cap << " avx2 " << avx2;
+        cap_binding += got != uncapped ? 1 : 0;
+      }
     }
   }
-  EXPECT_GE(cap_binding, 6);  // the test exercises the cap, not only plain BFS
+  EXPECT_GE(cap_binding, 12);  // the test exercises the cap, not only plain BFS
 }
 
 TEST(ClusterBfs, RejectsBadArguments) {
@@ -701,8 +712,8 @@ TEST(ClusterTiming, HundredThousandPointRoom) {
       std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   std::printf(
       "[ timing   ] MultiScaleClusters: %zu points (80k labelled), 4 passes, %zu "
-      "proposals: %.1f ms\n",
-      points.size(), props.size(), ms);
+      "proposals: %.1f ms (%s)\n",
+      points.size(), props.size(), ms, ClusteringSimdPath());
   EXPECT_GE(props.size(), 40u);
 }
 

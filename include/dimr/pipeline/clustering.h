@@ -48,6 +48,14 @@ std::vector<std::vector<int>> BfsClusters(const std::vector<Eigen::Vector3f>& po
                                           const std::vector<int>& labels, double radius,
                                           int min_points, int max_neighbours = 1000);
 
+// The SIMD path of BfsClusters' distance tests: "avx2" (8 at a time) where the CPU has AVX2
+// and it is allowed, else "sse2" (4 at a time). Every path performs the same float operations
+// (no FMA), so the clusters are identical.
+const char* ClusteringSimdPath();
+// Allows (default) or forbids the AVX2 path, e.g. to test or time the SSE2 one on an AVX2
+// machine; returns the previous setting. Not thread-safe: call it before clustering starts.
+bool SetClusteringAvx2(bool enabled);
+
 struct Proposal {
   std::vector<int> points;  // point indices (BFS order), unique
   int label = -1;           // the (common) label of its points
