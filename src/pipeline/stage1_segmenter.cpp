@@ -182,13 +182,14 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 },
                 [](const C& c) { return !c.class_bias.empty(); }})
           .Add({"colour_norm", "",
-                "per-scene colour standardisation to the training rooms: mean r,g,b then std "
-                "r,g,b in [0, 1] units (dimr stage1 colour-stats), or none",
+                "per-scene colour standardisation into the training rooms' range: mean min r,g,b, "
+                "mean max r,g,b, std min r,g,b, std max r,g,b in [0, 1] units (dimr stage1 "
+                "colour-stats), or none",
                 false,
-                [](const C& c) { return c.colour_norm ? c.colour_target.ToString() : "none"; },
+                [](const C& c) { return c.colour_norm ? c.colour_range.ToString() : "none"; },
                 [](C& c, const std::string& v) -> std::string {
                   try {
-                    c.colour_norm = ColourStats::Parse(v, &c.colour_target);
+                    c.colour_norm = ColourRange::Parse(v, &c.colour_range);
                   } catch (const InvalidArgument& e) {
                     return e.what();
                   }
@@ -384,7 +385,7 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
   // Colour standardisation (colour_norm.h) on a copy; the caller's colours stay as they are.
   std::vector<Eigen::Vector3f> standardised;
   if (uses_color() && impl_->config.colour_norm) {
-    standardised = StandardiseColours(input.colors, impl_->config.colour_target);
+    standardised = StandardiseColours(input.colors, impl_->config.colour_range);
   }
   const std::vector<Eigen::Vector3f>* colours =
       !uses_color() ? nullptr : (impl_->config.colour_norm ? &standardised : &input.colors);

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <iterator>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -813,18 +814,26 @@ void SetupAverage(CLI::App& app) {
 // (pipeline/colour_norm.h), printed as the model card's `colour_norm=` value.
 void SetupColourStats(CLI::App& app) {
   struct Args {
-    std::string scans, json;
+    std::vector<std::string> scans;
+    std::string json;
     int limit = 0, threads = 2;
   };
   auto a = std::make_shared<Args>();
   app.add_option("--scans", a->scans,
-                 "training scenes: scans folder or `dimr stage1 prepare` cache")
+                 "scenes the model may be tuned on (training, validation; never test): scans "
+                 "folders or `dimr stage1 prepare` caches, repeatable")
       ->required();
   app.add_option("--limit", a->limit, "first N scenes only");
   app.add_option("--threads", a->threads, "threads reading scene folders");
   app.add_option("--json", a->json, "write the per-room and average statistics as JSON");
   app.callback([a] {
-    const auto scenes = LoadScenes(a->scans, a->limit, a->threads);
+    std::vector<nn::Stage1Sample> scenes;
+    std::string sources;
+    for (const std::string& path : a->scans) {
+      auto part = LoadScenes(path, a->limit, a->threads);
+      std::move(part.begin(), part.end(), std::back_inserter(scenes));
+      sources += (sources.empty() ? "" : ", ") + path;
+    }
     std::vector<pipeline::ColourStats> rooms;
     nlohmann::json j_rooms = nlohmann::json::array();
     for (const auto& s : scenes) {
@@ -835,30 +844,31 @@ void SetupColourStats(CLI::App& app) {
            {"mean", {rooms.back().mean.x(), rooms.back().mean.y(), rooms.back().mean.z()}},
            {"std", {rooms.back().std.x(), rooms.back().std.y(), rooms.back().std.z()}}});
     }
-    const pipeline::ColourStats avg = pipeline::AverageRoomColourStats(rooms);
-    Eigen::Vector3f lo_m = rooms[0].mean, hi_m = rooms[0].mean, lo_s = rooms[0].std,
-                    hi_s = rooms[0].std;
+    const pipeline::ColourRange range = pipeline::RangeOfRooms(rooms);
+    Eigen::Vector3f avg_m = Eigen::Vector3f::Zero(), avg_s = Eigen::Vector3f::Zero();
     for (const auto& r : rooms) {
-      lo_m = lo_m.cwiseMin(r.mean);
-      hi_m = hi_m.cwiseMax(r.mean);
-      lo_s = lo_s.cwiseMin(r.std);
-      hi_s = hi_s.cwiseMax(r.std);
+      avg_m += r.mean / static_cast<float>(rooms.size());
+      avg_s += r.std / static_cast<float>(rooms.size());
     }
-    std::printf("%zu rooms of %s ([0, 1] units)\n", rooms.size(), a->scans.c_str());
-    std::printf("| | r | g | b |\n|---|---|---|---|\n");
-    std::printf("| mean of room means | %.4f | %.4f | %.4f |\n", avg.mean.x(), avg.mean.y(),
-                avg.mean.z());
-    std::printf("| room means, min - max | %.3f - %.3f | %.3f - %.3f | %.3f - %.3f |\n", lo_m.x(),
-                hi_m.x(), lo_m.y(), hi_m.y(), lo_m.z(), hi_m.z());
-    std::printf("| mean of room stds | %.4f | %.4f | %.4f |\n", avg.std.x(), avg.std.y(),
-                avg.std.z());
-    std::printf("| room stds, min - max | %.3f - %.3f | %.3f - %.3f | %.3f - %.3f |\n", lo_s.x(),
-                hi_s.x(), lo_s.y(), hi_s.y(), lo_s.z(), hi_s.z());
-    std::printf("colour_norm=%s\n", avg.ToString().c_str());
+    std::printf("%zu rooms of %s ([0, 1] units)\n", rooms.size(), sources.c_str());
+    std::printf("| per-room | r | g | b |\n|---|---|---|---|\n");
+    std::printf(
+        "| mean: min / average / max | %.3f / %.3f / %.3f | %.3f / %.3f / %.3f | %.3f / %.3f / "
+        "%.3f |\n",
+        range.mean_min.x(), avg_m.x(), range.mean_max.x(), range.mean_min.y(), avg_m.y(),
+        range.mean_max.y(), range.mean_min.z(), avg_m.z(), range.mean_max.z());
+    std::printf(
+        "| std: min / average / max | %.3f / %.3f / %.3f | %.3f / %.3f / %.3f | %.3f / %.3f / %.3f "
+        "|\n",
+        range.std_min.x(), avg_s.x(), range.std_max.x(), range.std_min.y(), avg_s.y(),
+        range.std_max.y(), range.std_min.z(), avg_s.z(), range.std_max.z());
+    std::printf("colour_norm=%s\n", range.ToString().c_str());
     if (!a->json.empty()) {
       std::ofstream f(a->json);
       if (!f) throw Error("cannot write '" + a->json + "'");
-      f << nlohmann::json{{"scans", a->scans}, {"colour_norm", avg.ToString()}, {"rooms", j_rooms}}
+      f << nlohmann::json{{"scans", a->scans},
+                          {"colour_norm", range.ToString()},
+                          {"rooms", j_rooms}}
                .dump(2)
         << "\n";
     }
@@ -867,7 +877,7 @@ void SetupColourStats(CLI::App& app) {
 
 const Registrar kColourStats(
     "stage1", "colour-stats",
-    "Colour mean / spread of the training rooms: the model card's colour_norm target "
+    "Range of the training rooms' colour mean / spread: the model card's colour_norm value "
     "(per-scene colour standardisation of real scans)",
     &SetupColourStats);
 const Registrar kTrain("train", "stage1", "Train the stage-1 point-wise network", &SetupTrain);

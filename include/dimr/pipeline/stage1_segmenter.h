@@ -66,11 +66,11 @@ struct Stage1InferenceConfig {
   double vote_radius = 0;
   int vote_min_points = 20;
   std::vector<int> vote_exclude;
-  // Per-scene colour standardisation (colour_norm.h): each channel's mean / std mapped to the
-  // training rooms' (text "colour_norm=m_r,m_g,m_b,s_r,s_g,s_b", `dimr stage1 colour-stats`);
-  // off when colour_norm is false ("none").
+  // Per-scene colour standardisation (colour_norm.h): a scene whose colour mean / spread lie
+  // outside the training rooms' range is mapped to the nearest in-range statistics (text
+  // "colour_norm=<12 values>", `dimr stage1 colour-stats`); off when colour_norm is false.
   bool colour_norm = false;
-  ColourStats colour_target;
+  ColourRange colour_range;
   // Multi-scale clustering passes (default: the reference's o0.03,s0.01,s0.03,s0.05), the
   // smallest cluster, point-IoU NMS threshold and the smallest proposal kept (> min_points).
   std::vector<ClusterPass> passes = ClusteringConfig().passes;
