@@ -180,12 +180,12 @@ void RunBench(BenchArgs& a) {
   std::printf(
       "CPU: %s\nsparse kernel path: %s\nrooms: %zu from %s, at most %d points each (median "
       "%.0f; each of up to %d rooms side by side, median %.0f)\nICP: %s %s, <= %d iterations, "
-      "%d samples\n",
+      "%d samples; proposals with > %d points\n",
       CpuModel().c_str(), KernelPath().c_str(), inputs.size(), a.rooms.c_str(), a.points,
       Median(sizes), a.max_tiles, Median(std::vector<double>(tiles_used.begin(), tiles_used.end())),
       dimr::pipeline::IcpBackendName(a.config.icp.backend),
       dimr::pipeline::IcpMetricName(a.config.icp.metric), a.config.icp.max_iterations,
-      a.config.icp.samples);
+      a.config.icp.samples, a.config.min_points);
   nlohmann::json out;
   out["cpu"] = CpuModel();
   out["kernel_path"] = KernelPath();
@@ -197,6 +197,7 @@ void RunBench(BenchArgs& a) {
   out["icp_metric"] = dimr::pipeline::IcpMetricName(a.config.icp.metric);
   out["icp_max_iterations"] = a.config.icp.max_iterations;
   out["icp_samples"] = a.config.icp.samples;
+  out["min_points"] = a.config.min_points;
   out["rooms"] = inputs.size();
   out["runs"] = nlohmann::json::array();
   std::printf("\n%-9s %3s %9s", "preset", "thr", "total ms");
@@ -275,6 +276,11 @@ void SetupBench(CLI::App& app) {
                  "(up to this many rooms in all; 1 = never)")
       ->capture_default_str()
       ->check(CLI::Range(1, 64));
+  app.add_option("--min-points", a->config.min_points,
+                 "keep proposals with more points (as dimr reconstruct --min-points; fixes the "
+                 "object count when comparing binaries with other defaults)")
+      ->capture_default_str()
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--json", a->json_out, "write the results as JSON here");
   app.add_option("--icp-backend", a->icp_backend, "ICP: own or pcl")->capture_default_str();
   app.add_option("--icp-metric", a->icp_metric, "ICP (own): point_to_point or point_to_plane")
