@@ -29,6 +29,7 @@ using geometry::Color;
 using geometry::Vec3;
 using Vec2 = Eigen::Vector2d;
 constexpr double kPi = 3.14159265358979323846;
+constexpr int kMaxSensorFrames = 256;
 
 double Deg(double d) { return d * kPi / 180.0; }
 
@@ -78,7 +79,45 @@ struct SceneLook {
   Vec3 gain = Vec3::Ones();
   Vec3 light = Vec3::Zero();
   double ambient = 0.35;
+  // Floor pattern: 0 none (carpet), 1 planks, 2 tiles.
+  int floor_kind = 0;
+  int floor_axis = 0;  // planks run along x (0) or y (1)
+  double floor_width = 0.15;
+  double floor_sigma = 0;
+  std::uint64_t floor_salt = 0;
 };
+
+// Brightness factor of the floor pattern at p (planks: one log-normal factor per board,
+// boards staggered in length; tiles: one per tile and dark grout lines).
+double FloorPattern(const SceneLook& look, const Vec3& p) {
+  if (look.floor_kind == 0 || look.floor_sigma <= 0) return 1.0;
+  auto unit_normal = [](std::uint64_t h) {
+    // Sum of 4 uniforms (Irwin-Hall), scaled to unit variance: a cheap normal-like draw.
+    double s = 0;
+    for (int k = 0; k < 4; ++k) {
+      h = Mix64(h + 0x9e3779b97f4a7c15ULL);
+      s += static_cast<double>(h >> 11) * (1.0 / 9007199254740992.0);
+    }
+    return (s - 2.0) * std::sqrt(3.0);
+  };
+  const double a = look.floor_axis == 0 ? p.y() : p.x();  // across the boards
+  const double b = look.floor_axis == 0 ? p.x() : p.y();  // along the boards
+  if (look.floor_kind == 1) {
+    const std::int64_t board = static_cast<std::int64_t>(std::floor(a / look.floor_width));
+    // Boards of 1.2 m, staggered per row.
+    const double offset = 0.37 * static_cast<double>(board % 3);
+    const std::int64_t piece = static_cast<std::int64_t>(std::floor((b + offset) / 1.2));
+    const std::uint64_t h = HashCombine(HashCombine(look.floor_salt, board), piece);
+    return std::exp(look.floor_sigma * unit_normal(h));
+  }
+  const std::int64_t ia = static_cast<std::int64_t>(std::floor(a / look.floor_width));
+  const std::int64_t ib = static_cast<std::int64_t>(std::floor(b / look.floor_width));
+  const double fa = a - look.floor_width * ia, fb = b - look.floor_width * ib;
+  const double grout = 0.006;
+  if (fa < grout || fb < grout) return 0.45;
+  return std::exp(look.floor_sigma / 3.0 *
+                  unit_normal(HashCombine(HashCombine(look.floor_salt, ia), ib)));
+}
 
 Vec3 Pick(const std::vector<Vec3>& palette, Rng* rng) {
   return palette[static_cast<std::size_t>(
@@ -114,7 +153,9 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
       case ObjectRole::kCeiling:
         break;
       case ObjectRole::kWall:
-        target = (rng.Bernoulli(0.25) ? accent : paint) * std::exp(rng.Normal(0, 0.05));
+        // One paint per room (a quarter accent walls); each wall lit differently (windows,
+        // lamps: log-normal sigma 0.2 of its brightness).
+        target = (rng.Bernoulli(0.25) ? accent : paint) * std::exp(rng.Normal(0, 0.2));
         break;
       case ObjectRole::kFloor:
         target = floor;
@@ -150,15 +191,27 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
   }
   look.light = Vec3(rng.Uniform(0.3, 0.7) * (hi.x() - lo.x()) + lo.x(),
                     rng.Uniform(0.3, 0.7) * (hi.y() - lo.y()) + lo.y(), room.height - 0.2);
+  if (cfg.floor_pattern > 0) {
+    // Own stream: the palette draws above stay as they were.
+    Rng frng(HashCombine(seed, 0xf100bULL));
+    const double kind = frng.Uniform();
+    look.floor_kind = kind < 0.55 ? 1 : (kind < 0.8 ? 2 : 0);
+    look.floor_axis = frng.Bernoulli(0.5) ? 1 : 0;
+    look.floor_width = look.floor_kind == 1 ? frng.Uniform(0.09, 0.22) : frng.Uniform(0.3, 0.6);
+    look.floor_sigma = cfg.floor_pattern;
+    look.floor_salt = frng.Fork();
+  }
   const double exposure = std::exp(rng.Normal(0, cfg.exposure_jitter));
   for (int k = 0; k < 3; ++k)
     look.gain[k] = exposure * std::exp(rng.Normal(0, cfg.white_balance_jitter));
   return look;
 }
 
-double Texture(const Material& m, std::uint64_t salt, const Vec3& p) {
-  return 1.0 + m.texture_amplitude * (ValueNoise(p / m.texture_scale, salt) +
-                                      0.5 * ValueNoise(p / (0.25 * m.texture_scale), salt + 1));
+double Texture(const Material& m, std::uint64_t salt, const Vec3& p, double gain) {
+  const double t = 1.0 + gain * m.texture_amplitude *
+                             (ValueNoise(p / m.texture_scale, salt) +
+                              0.5 * ValueNoise(p / (0.25 * m.texture_scale), salt + 1));
+  return std::max(t, 0.05);
 }
 
 double Luminance(const Vec3& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.0722 * c.z(); }
@@ -166,12 +219,13 @@ double Luminance(const Vec3& c) { return 0.2126 * c.x() + 0.7152 * c.y() + 0.072
 // v2 shading: albedo x texture x (ambient + Lambert from the point light with distance
 // fall-off), white balance and exposure, gamma, sensor noise. `n` faces the camera.
 Color ShadeV2(const Vec3& albedo, double tex, const SceneLook& look, double frame_gain,
-              const Vec3& p, const Vec3& n, Rng* rng) {
+              const Vec3& p, const Vec3& n, double direct_share, Rng* rng) {
   Vec3 l = look.light - p;
   const double d = std::max(l.norm(), 1e-6);
   l /= d;
   const double falloff = std::min(1.0, (2.0 / d) * (2.0 / d));
-  const double irradiance = look.ambient + (1 - look.ambient) * std::max(0.0, n.dot(l)) * falloff;
+  const double irradiance =
+      look.ambient + (1 - look.ambient) * std::max(0.0, n.dot(l)) * falloff * direct_share;
   Color c;
   for (int k = 0; k < 3; ++k) {
     double v = 1.3 * albedo[k] * tex * irradiance * look.gain[k] * frame_gain;
@@ -459,6 +513,115 @@ double MeasuredDepth(const ScannerConfig& c, double z, double standard_normal) {
   return zm;
 }
 
+const config::Fields<ScannerConfig>& ScannerFields() {
+  using C = ScannerConfig;
+  static const config::Fields<C> fields =
+      config::Fields<C>("scanner")
+          .Number(
+              "width", [](C& c) -> int& { return c.width; }, "px", "depth image width", 8, 4096)
+          .Number(
+              "height", [](C& c) -> int& { return c.height; }, "px", "depth image height", 8, 4096)
+          .Number(
+              "axial_noise_base", [](C& c) -> double& { return c.axial_noise_base; }, "m",
+              "sigma(z) = base + quad (z - z0)^2", 0.0, 0.1)
+          .Number(
+              "axial_noise_quad", [](C& c) -> double& { return c.axial_noise_quad; }, "1/m",
+              "sigma(z) = base + quad (z - z0)^2", 0.0, 0.1)
+          .Number(
+              "axial_noise_z0", [](C& c) -> double& { return c.axial_noise_z0; }, "m",
+              "sigma(z) = base + quad (z - z0)^2", 0.0, 20.0)
+          .Number(
+              "noise_clip", [](C& c) -> double& { return c.noise_clip; }, "sigma",
+              "axial noise truncation", 0.1, 10.0)
+          .Number(
+              "lateral_noise_px", [](C& c) -> double& { return c.lateral_noise_px; }, "px",
+              "pixel jitter", 0.0, 5.0)
+          .Number(
+              "disparity_quantum", [](C& c) -> double& { return c.disparity_quantum; }, "1/m",
+              "inverse-depth step (0 = off)", 0.0, 0.1)
+          .Number(
+              "sensor_frames", [](C& c) -> int& { return c.sensor_frames; }, "",
+              "sensor frames averaged per rendered frame", 1, kMaxSensorFrames)
+          .Number(
+              "flying_pixel_probability",
+              [](C& c) -> double& { return c.flying_pixel_probability; }, "",
+              "flying pixels at depth edges", 0.0, 1.0)
+          .Number(
+              "dark_dropout", [](C& c) -> double& { return c.dark_dropout; }, "",
+              "extra dropout on black", 0.0, 1.0)
+          .Number(
+              "glossy_dropout", [](C& c) -> double& { return c.glossy_dropout; }, "",
+              "extra dropout on glossy surfaces head-on", 0.0, 1.0)
+          .Number(
+              "dropout", [](C& c) -> double& { return c.dropout; }, "", "random dropout", 0.0, 0.99)
+          .Number(
+              "drift_translation", [](C& c) -> double& { return c.drift_translation; }, "m",
+              "pose random-walk step", 0.0, 0.05)
+          .Number(
+              "drift_rotation_deg", [](C& c) -> double& { return c.drift_rotation_deg; }, "deg",
+              "pose random-walk step", 0.0, 2.0)
+          .Flag(
+              "loop_closure", [](C& c) -> bool& { return c.loop_closure; },
+              "distribute the end drift back along the loop")
+          .Number(
+              "min_coverage", [](C& c) -> double& { return c.min_coverage; }, "",
+              "walked part of the loop drawn in [min_coverage, 1]", 0.1, 1.0)
+          .Number(
+              "height_cap_probability", [](C& c) -> double& { return c.height_cap_probability; },
+              "", "scans that stop at a height", 0.0, 1.0)
+          .Number(
+              "white_balance_jitter", [](C& c) -> double& { return c.white_balance_jitter; }, "",
+              "per-channel log gain sigma", 0.0, 1.0)
+          .Number(
+              "exposure_jitter", [](C& c) -> double& { return c.exposure_jitter; }, "",
+              "per-scene log gain sigma", 0.0, 1.0)
+          .Number(
+              "frame_exposure_jitter", [](C& c) -> double& { return c.frame_exposure_jitter; }, "",
+              "per-frame log gain sigma", 0.0, 1.0)
+          .Flag(
+              "lambert_shading", [](C& c) -> bool& { return c.lambert_shading; },
+              "point-light Lambert shading")
+          .Number(
+              "ambient", [](C& c) -> double& { return c.ambient; }, "", "ambient share", 0.0, 1.0)
+          .Number(
+              "material_variety", [](C& c) -> double& { return c.material_variety; }, "",
+              "weight of the v2 palettes", 0.0, 1.0)
+          .Number(
+              "shadow_strength", [](C& c) -> double& { return c.shadow_strength; }, "",
+              "share of direct light a cast shadow removes", 0.0, 1.0)
+          .Number(
+              "exposure_drift", [](C& c) -> double& { return c.exposure_drift; }, "",
+              "smooth auto-exposure log-gain sigma", 0.0, 1.0)
+          .Number(
+              "texture_gain", [](C& c) -> double& { return c.texture_gain; }, "",
+              "material texture amplitude multiplier", 0.0, 20.0)
+          .Number(
+              "floor_pattern", [](C& c) -> double& { return c.floor_pattern; }, "",
+              "log brightness sigma of floor boards / tiles", 0.0, 2.0)
+          .Number(
+              "tsdf_voxel_size", [](C& c) -> double& { return c.tsdf.voxel_size; }, "m",
+              "TSDF voxel", 0.002, 0.2)
+          .Number(
+              "tsdf_truncation", [](C& c) -> double& { return c.tsdf.truncation; }, "m",
+              "TSDF truncation", 0.004, 1.0)
+          .Number(
+              "tsdf_min_component_triangles",
+              [](C& c) -> int& { return c.tsdf.min_component_triangles; }, "", "cleaning threshold",
+              0, 100000000)
+          .Number(
+              "tsdf_target_spacing", [](C& c) -> double& { return c.tsdf.target_spacing; }, "m",
+              "decimation lattice edge", 0.002, 0.5);
+  return fields;
+}
+
+double AveragedDepth(const ScannerConfig& c, double z, const double* standard_normals, int count) {
+  if (count < 1 || standard_normals == nullptr)
+    throw InvalidArgument("AveragedDepth: need at least one standard normal");
+  double sum = 0;
+  for (int i = 0; i < count; ++i) sum += MeasuredDepth(c, z, standard_normals[i]);
+  return sum / count;
+}
+
 void ScannerConfig::EnableRealism() {
   // Structured-light sensor (Kinect v1 / Structure-like): sigma(z) = 0.0005 + 0.0025 z^2
   // (1.0 cm at 2 m, 2.3 cm at 3 m), 1/8-pixel disparity steps, flying pixels, dark / glossy
@@ -468,6 +631,10 @@ void ScannerConfig::EnableRealism() {
   axial_noise_z0 = 0.0;
   lateral_noise_px = 0.6;
   disparity_quantum = 0.0029;
+  // A 30 Hz scan of a room has thousands of frames, SynthScan renders 60: each stands for 48
+  // averaged sensor frames (tuned: surface variation of the fused mesh in the real range,
+  // docs/synthscan.md).
+  sensor_frames = 48;
   flying_pixel_probability = 0.5;
   dark_dropout = 0.6;
   glossy_dropout = 0.5;
@@ -483,6 +650,11 @@ void ScannerConfig::EnableRealism() {
   exposure_jitter = 0.25;
   frame_exposure_jitter = 0.08;
   lambert_shading = true;
+  ambient = 0.1;
+  shadow_strength = 0.8;
+  exposure_drift = 0.8;
+  texture_gain = 3.0;
+  floor_pattern = 0.35;
   material_variety = 1.0;
 }
 
@@ -503,6 +675,8 @@ void ScannerConfig::Validate() const {
   if (!(axial_noise_base >= 0 && axial_noise_quad >= 0 && noise_clip > 0))
     fail("axial noise parameters must be >= 0 and noise_clip > 0");
   if (!(lateral_noise_px >= 0)) fail("lateral_noise_px must be >= 0");
+  if (sensor_frames < 1 || sensor_frames > kMaxSensorFrames)
+    fail("sensor_frames must be in [1, " + std::to_string(kMaxSensorFrames) + "]");
   if (!(dropout >= 0 && dropout < 1)) fail("dropout must be in [0, 1)");
   if (!(grazing_start_deg > 0 && grazing_end_deg > grazing_start_deg && grazing_end_deg <= 90))
     fail("need 0 < grazing_start_deg < grazing_end_deg <= 90");
@@ -525,6 +699,10 @@ void ScannerConfig::Validate() const {
     fail("colour jitters must be in [0, 1]");
   if (!(ambient >= 0 && ambient <= 1)) fail("ambient must be in [0, 1]");
   if (!(material_variety >= 0 && material_variety <= 1)) fail("material_variety must be in [0, 1]");
+  if (!(shadow_strength >= 0 && shadow_strength <= 1)) fail("shadow_strength must be in [0, 1]");
+  if (!(exposure_drift >= 0 && exposure_drift <= 1)) fail("exposure_drift must be in [0, 1]");
+  if (!(texture_gain >= 0 && texture_gain <= 20)) fail("texture_gain must be in [0, 20]");
+  if (!(floor_pattern >= 0 && floor_pattern <= 2)) fail("floor_pattern must be in [0, 2]");
   if (density == ScanDensity::kScanNet) tsdf.Validate();
   if (!(mesh_voxel_size >= 0.005 && mesh_voxel_size <= 0.5))
     fail("mesh_voxel_size must be in [0.005, 0.5] m");
@@ -647,6 +825,20 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
       height_cap = cap.Uniform(cfg.height_cap_min, cfg.height_cap_max);
   }
   Rng exposure_rng(HashCombine(seed, 0xe7905ULL));
+  // Wandering auto exposure: AR(1) log gain, correlation length 25 % of the frames (a pass
+  // along one wall keeps its gain; the fusion averages a surface over the frames of a pass).
+  std::vector<double> exposure_walk(poses.size(), 1.0);
+  if (cfg.exposure_drift > 0 && !poses.empty()) {
+    Rng walk_rng(HashCombine(seed, 0xae3a1cULL));
+    const double rho = std::exp(-1.0 / std::max(1.0, 0.25 * static_cast<double>(poses.size())));
+    double s = walk_rng.Normal();
+    for (std::size_t f = 0; f < poses.size(); ++f) {
+      if (f > 0) s = rho * s + std::sqrt(1 - rho * rho) * walk_rng.Normal();
+      // Unit-mean log-normal: the wandering changes contrast, not the average brightness.
+      exposure_walk[f] =
+          std::exp(cfg.exposure_drift * s - 0.5 * cfg.exposure_drift * cfg.exposure_drift);
+    }
+  }
 
   // Registration drift: a random walk of the pose error; with loop closure the error at the
   // end of the loop is distributed back linearly (zero at both ends, largest in the middle).
@@ -746,7 +938,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
             albedo = c.cwiseMax(0.0).cwiseMin(1.0);
           }
           double tex = 0;
-          if (colour_v2 || cfg.dark_dropout > 0) tex = Texture(o.material, salts[obj], hit);
+          if (colour_v2 || cfg.dark_dropout > 0)
+            tex = Texture(o.material, salts[obj], hit, colour_v2 ? cfg.texture_gain : 1.0);
+          if (colour_v2 && o.role == ObjectRole::kFloor && o.mesh.vertex_colors.empty())
+            tex *= FloorPattern(look, hit);
           if (cfg.dark_dropout > 0 || cfg.glossy_dropout > 0) {
             double p2 = 0;
             if (cfg.dark_dropout > 0) {
@@ -758,7 +953,16 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
             if (rng2.Uniform() < p2) continue;
           }
           const double sigma = AxialSigma(cfg, z);
-          const double zm = MeasuredDepth(cfg, z, r_noise);
+          double zm = 0;
+          if (cfg.sensor_frames > 1) {
+            // Temporal averaging: the first draw is `rng`'s, the others the v2 stream's.
+            double normals[kMaxSensorFrames];
+            normals[0] = r_noise;
+            for (int k = 1; k < cfg.sensor_frames; ++k) normals[k] = rng2.Normal();
+            zm = AveragedDepth(cfg, z, normals, cfg.sensor_frames);
+          } else {
+            zm = MeasuredDepth(cfg, z, r_noise);
+          }
           const Vec3 cam = dc * zm;  // dc has unit z
           const Vec3 pw = org + rot * cam;
           Return ret;
@@ -767,7 +971,23 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
           ret.bin = est_r * (dc * z).cast<float>() + est_t;
           if (colour_v2) {
             const Vec3 nv = n.dot(dw) > 0 ? Vec3(-n) : n;
-            ret.color = ShadeV2(albedo, tex, look, frame_gain, pw, nv, &rng);
+            double direct = 1.0;
+            if (cfg.shadow_strength > 0) {
+              // Shadow ray from just above the surface to the light.
+              Vec3 to_light = look.light - hit;
+              const double dl = to_light.norm();
+              if (dl > 0.05 && nv.dot(to_light) > 0) {
+                to_light /= dl;
+                double ts = 0, sbu = 0, sbv = 0;
+                Vec3 sn;
+                int sprim = -1;
+                const int blocker =
+                    scene.Cast(hit + 0.004 * nv, to_light, dl - 0.02, &ts, &sn, &sprim, &sbu, &sbv);
+                if (blocker >= 0) direct = 1.0 - cfg.shadow_strength;
+              }
+            }
+            ret.color =
+                ShadeV2(albedo, tex, look, frame_gain * exposure_walk[f], pw, nv, direct, &rng);
           } else {
             ret.color = Shade(o, albedo, salts[obj], pw, n, dw, &rng);
           }

@@ -353,6 +353,7 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& c, std::uint64_
   y << YAML::Key << "drift_rotation_deg" << YAML::Value << k.drift_rotation_deg;
   y << YAML::Key << "density" << YAML::Value << ScanDensityName(k.density);
   y << YAML::Key << "mesh_voxel_size" << YAML::Value << k.mesh_voxel_size;
+  y << YAML::Key << "fields" << YAML::Value << ScannerFields().Format(k);
   y << YAML::EndMap;
   y << YAML::EndMap;
   // Summary.

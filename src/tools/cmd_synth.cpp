@@ -53,6 +53,7 @@ struct SynthOptions {
   std::string real_furniture_dir = "data/sh3d";
   bool quiet = false;
   bool render = false;
+  std::string scanner;  // 'key=value ...' on top of the mode's ScannerConfig (ScannerFields)
 };
 
 struct RunResult {
@@ -170,6 +171,8 @@ RunResult RunSynth(const SynthOptions& o) {
   if (o.realism == "v2" ||
       (o.realism == "auto" && config.scanner.density == dimr::data::ScanDensity::kScanNet))
     config.scanner.EnableRealism();
+  if (!o.scanner.empty())
+    config.scanner = dimr::data::ScannerFields().Parse(o.scanner, config.scanner);
   config.Validate();
 
   const fs::path out(o.out);
@@ -283,6 +286,10 @@ void AddCommon(CLI::App& app, SynthOptions* o) {
   app.add_option("--real-furniture-dir", o->real_furniture_dir,
                  "Folder written by `dimr cad import`")
       ->capture_default_str();
+  app.add_option("--scanner", o->scanner,
+                 "Scanner / sensor-model overrides 'key=value ...' applied after --realism "
+                 "(keys: " +
+                     dimr::data::ScannerFields().Keys() + ")");
 }
 
 void SetupSynth(CLI::App& app) {

@@ -19,6 +19,14 @@ namespace {
 
 using geometry::Vec3;
 
+// DefaultModesArePinned: TestRoom, SmallScanner with 8 frames, seed 11.
+constexpr std::size_t kPinMeshPoints = 15079;
+constexpr double kPinMeshXyz = 142494.931;
+constexpr long long kPinMeshRgb = 15688455;
+constexpr std::size_t kPinRawPoints = 28100;
+constexpr double kPinRawXyz = 268432.535;
+constexpr long long kPinRawRgb = 29408717;
+
 ScannerConfig SmallScanner() {
   ScannerConfig c;
   c.width = 160;
@@ -288,6 +296,138 @@ TEST(ScannerTest, StructuredLightNoiseModelStatistics) {
   const ScannerConfig d;
   EXPECT_NEAR(AxialSigma(d, 2.4), 0.0012 + 0.0019 * 4, 1e-12);
   EXPECT_EQ(MeasuredDepth(d, 2.0, 0.0), 2.0);
+}
+
+// The default (v1) modes must not move when v2 knobs are added: a fingerprint of a mesh-mode
+// and a raw-mode scan, recorded from main before SynthScan v2's tuning (mesh-mode rooms of
+// `dimr synth` were compared byte for byte against that build too).
+TEST(ScannerTest, DefaultModesArePinned) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 8;
+  auto fingerprint = [](const ScanResult& s, double* xyz, long long* rgb) {
+    *xyz = 0;
+    *rgb = 0;
+    for (std::size_t k = 0; k < s.points.size(); ++k) {
+      *xyz += s.points[k].x() + 2 * s.points[k].y() + 3 * s.points[k].z();
+      *rgb += s.colors[k][0] + 2 * s.colors[k][1] + 3 * s.colors[k][2] + 7 * s.object[k];
+    }
+  };
+  double xyz = 0;
+  long long rgb = 0;
+  const ScanResult mesh = ScanRoom(room, c, 11);
+  fingerprint(mesh, &xyz, &rgb);
+  std::printf("mesh: %zu points, xyz %.9g, rgb %lld\n", mesh.points.size(), xyz, rgb);
+  EXPECT_EQ(mesh.points.size(), kPinMeshPoints);
+  EXPECT_NEAR(xyz, kPinMeshXyz, 1e-6 * std::abs(kPinMeshXyz));
+  EXPECT_EQ(rgb, kPinMeshRgb);
+  c.density = ScanDensity::kRaw;
+  const ScanResult raw = ScanRoom(room, c, 11);
+  fingerprint(raw, &xyz, &rgb);
+  std::printf("raw: %zu points, xyz %.9g, rgb %lld\n", raw.points.size(), xyz, rgb);
+  EXPECT_EQ(raw.points.size(), kPinRawPoints);
+  EXPECT_NEAR(xyz, kPinRawXyz, 1e-6 * std::abs(kPinRawXyz));
+  EXPECT_EQ(rgb, kPinRawRgb);
+}
+
+TEST(ScannerTest, TemporalAveragingShrinksNoiseAndDithersDisparitySteps) {
+  ScannerConfig c;
+  c.EnableRealism();
+  ASSERT_GT(c.sensor_frames, 1);
+  synth::Rng rng(7);
+  const double trunc_sd = 0.9668;  // sd of a standard normal truncated at 2.5
+  for (int k : {1, 4, 16}) {
+    for (double z : {1.5, 3.0}) {
+      for (double q : {0.0, 0.0029}) {
+        c.disparity_quantum = q;
+        const int n = 20000;
+        double sum = 0, sum2 = 0;
+        std::vector<double> values;
+        std::vector<double> normals(k);
+        for (int i = 0; i < n; ++i) {
+          for (double& x : normals) x = rng.Normal();
+          const double e = AveragedDepth(c, z, normals.data(), k) - z;
+          sum += e;
+          sum2 += e * e;
+          if (i < 400) values.push_back(e);
+        }
+        const double mean = sum / n, sd = std::sqrt(sum2 / n - mean * mean);
+        const double sigma = AxialSigma(c, z);
+        // Quantisation of each sample adds ~step^2 / 12 of variance before the averaging.
+        const double step = q * z * z;
+        const double expect = std::sqrt(std::pow(trunc_sd * sigma, 2) + step * step / 12) /
+                              std::sqrt(static_cast<double>(k));
+        EXPECT_NEAR(sd, expect, 0.12 * expect) << "k " << k << " z " << z << " q " << q;
+        EXPECT_NEAR(mean, 0.0, 0.1 * sigma + 0.02 * step) << "k " << k << " z " << z;
+        // Averaged measurements fall between the disparity levels: many distinct values.
+        std::sort(values.begin(), values.end());
+        values.erase(std::unique(values.begin(), values.end()), values.end());
+        // (one measurement: the ~5 levels within the noise clip)
+        if (q > 0 && k == 1) {
+          EXPECT_LT(values.size(), 12u) << "z " << z;
+        }
+        if (q > 0 && k > 1) {
+          EXPECT_GT(values.size(), 12u) << "k " << k << " z " << z;
+        }
+      }
+    }
+  }
+  // One measurement is MeasuredDepth itself.
+  const double x = 0.7;
+  EXPECT_EQ(AveragedDepth(c, 2.0, &x, 1), MeasuredDepth(c, 2.0, x));
+  EXPECT_THROW(AveragedDepth(c, 2.0, &x, 0), InvalidArgument);
+  c.sensor_frames = 0;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
+}
+
+TEST(ScannerTest, ScannerFieldsParseAndCheckTheKnobs) {
+  ScannerConfig c;
+  c.EnableRealism();
+  const ScannerConfig d =
+      ScannerFields().Parse("disparity_quantum=0 sensor_frames=4 tsdf_voxel_size=0.02", c);
+  EXPECT_EQ(d.disparity_quantum, 0.0);
+  EXPECT_EQ(d.sensor_frames, 4);
+  EXPECT_EQ(d.tsdf.voxel_size, 0.02);
+  EXPECT_EQ(d.axial_noise_quad, c.axial_noise_quad);  // untouched keys keep the base
+  EXPECT_THROW(ScannerFields().Parse("no_such_key=1", c), InvalidArgument);
+  EXPECT_THROW(ScannerFields().Parse("dropout=1.5", c), InvalidArgument);
+  EXPECT_THROW(ScannerFields().Parse("sensor_frames=2.5", c), InvalidArgument);
+  // Format -> Parse reproduces the config.
+  const ScannerConfig e = ScannerFields().Parse(ScannerFields().Format(d), ScannerConfig());
+  EXPECT_EQ(ScannerFields().Format(e), ScannerFields().Format(d));
+  EXPECT_EQ(e.shadow_strength, d.shadow_strength);
+  EXPECT_EQ(e.exposure_drift, d.exposure_drift);
+}
+
+TEST(ScannerTest, CastShadowsOnlyDarken) {
+  const Room& room = TestRoom();
+  ScannerConfig c = SmallScanner();
+  c.frames = 6;
+  c.EnableRealism();
+  c.shadow_strength = 0;
+  const ScanResult lit = ScanRoom(room, c, 5);
+  c.shadow_strength = 1.0;
+  const ScanResult shadowed = ScanRoom(room, c, 5);
+  // Shadow rays draw no random numbers: same points, colours only ever darker.
+  ASSERT_EQ(lit.points.size(), shadowed.points.size());
+  ASSERT_GT(lit.points.size(), 1000u);
+  std::size_t darker = 0;
+  double drop = 0;
+  for (std::size_t k = 0; k < lit.points.size(); ++k) {
+    ASSERT_EQ(lit.points[k], shadowed.points[k]);
+    int d = 0;
+    for (int ch = 0; ch < 3; ++ch) {
+      ASSERT_LE(shadowed.colors[k][ch], lit.colors[k][ch] + 1) << k;
+      d += lit.colors[k][ch] - shadowed.colors[k][ch];
+    }
+    if (d > 6) ++darker;
+    drop += d / 3.0;
+  }
+  const double share = static_cast<double>(darker) / lit.points.size();
+  std::printf("shadowed share %.3f, mean drop %.1f\n", share, drop / lit.points.size());
+  // Furniture shadows the floor and walls under the point light: a real share, not all.
+  EXPECT_GT(share, 0.03);
+  EXPECT_LT(share, 0.8);
 }
 
 TEST(ScannerTest, RealismChangesColoursAndKeepsDefaultsOff) {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/data/room.h"
 #include "dimr/data/tsdf_fusion.h"
 #include "dimr/geometry/types.h"
@@ -53,6 +54,12 @@ struct ScannerConfig {
   // step is then disparity_quantum * z^2 (Kinect v1: 1/8 px at f = 580 px, baseline 7.5 cm ->
   // 0.0029 / m). 0 = off.
   double disparity_quantum = 0.0;
+  // Temporal averaging: each rendered frame stands for this many sensor frames taken from
+  // (almost) the same pose, which the TSDF averages - a 30 Hz hand-held scan of a room has
+  // thousands of frames, SynthScan renders 60. A pixel's depth is the mean of this many
+  // independent noisy, quantised measurements (MeasuredDepth), so the axial noise shrinks by
+  // sqrt(sensor_frames) and the disparity steps are dithered away. 1 = one measurement.
+  int sensor_frames = 1;
   // Flying pixels: a return whose 4-neighbour depth differs by more than flying_pixel_edge
   // (metres) gets, with this probability, a depth between the two surfaces. 0 = off.
   double flying_pixel_probability = 0.0;
@@ -95,6 +102,20 @@ struct ScannerConfig {
   // instead of today's fixed directional light and view term.
   bool lambert_shading = false;
   double ambient = 0.35;
+  // Cast shadows of the point light (lambert_shading): a return whose shadow ray to the light
+  // hits another surface keeps (1 - shadow_strength) of its direct light. 0 = off.
+  double shadow_strength = 0.0;
+  // Auto exposure that wanders along the scan: a smooth log-gain process (AR(1) with a
+  // correlation length of 25 % of the trajectory) of this standard deviation, on top of the
+  // i.i.d. frame_exposure_jitter. Surfaces seen from different parts of the loop are fused with
+  // different gains (the patchy brightness of real fused scans). 0 = off.
+  double exposure_drift = 0.0;
+  // Multiplies every material's texture amplitude (colour realism only; 1 = as composed).
+  double texture_gain = 1.0;
+  // Floor patterns (colour realism): per scene wood planks (55 %: boards 9-22 cm wide along x
+  // or y, each with a log-normal brightness of this sigma), tiles (25 %: 30-60 cm, sigma / 3
+  // per tile, dark 6 mm grout) or a plain carpet (20 %). 0 = off.
+  double floor_pattern = 0.0;
   // Material colour variety in [0, 1]: walls / floors / doors take a per-scene colour from
   // palettes of real paints, woods, tiles and carpets, furniture a per-object brightness and
   // tint jitter; blended with the room's own material by this weight.
@@ -120,15 +141,25 @@ struct ScannerConfig {
   void EnableRealism();
   bool ColourRealism() const {
     return white_balance_jitter > 0 || exposure_jitter > 0 || frame_exposure_jitter > 0 ||
-           lambert_shading || material_variety > 0;
+           exposure_drift > 0 || lambert_shading || material_variety > 0;
   }
 };
+
+// The `key=value` form of the sensor-model, trajectory, colour and TSDF knobs of ScannerConfig
+// (`dimr synth --scanner 'disparity_quantum=0 tsdf_voxel_size=0.008'`): applied on top of the
+// mode's defaults (after EnableRealism()); the keys are the field names (tsdf_* = tsdf.*).
+const config::Fields<ScannerConfig>& ScannerFields();
 
 // Axial depth noise sigma(z) = base + quad * (z - z0)^2 (metres).
 double AxialSigma(const ScannerConfig& config, double z);
 // The depth the sensor reports for true depth z: axial noise (standard_normal truncated at
 // noise_clip) then disparity quantisation. The scanner uses exactly this.
 double MeasuredDepth(const ScannerConfig& config, double z, double standard_normal);
+
+// The mean of MeasuredDepth over `count` >= 1 standard normals (sensor_frames temporal
+// averaging).
+double AveragedDepth(const ScannerConfig& config, double z, const double* standard_normals,
+                     int count);
 
 // One depth frame as a sensor would publish it.
 struct ScanFrame {
