@@ -261,6 +261,14 @@ class BallQuery {
           total += segs_[cell_seg_begin_[e + 1] - 1].end - segs_[cell_seg_begin_[e]].begin;
         }
       }
+      // Nearest cells first (itself, faces, edges, corners): the count of hits below a bound
+      // reaches the cap with fewer tests.
+      const auto ring = [&](int e) {
+        const CellKey& k = cell_keys[e];
+        return std::abs(k.x - key.x) + std::abs(k.y - key.y) + std::abs(k.z - key.z);
+      };
+      std::stable_sort(near_.begin() + near_begin_.back(), near_.end(),
+                       [&](int a, int b) { return ring(a) < ring(b); });
       near_begin_.push_back(static_cast<int>(near_.size()));
       near_total_.push_back(total);
     }

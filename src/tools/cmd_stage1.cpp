@@ -657,6 +657,7 @@ struct BenchArgs {
   std::string json;
   int rooms = 5, points = 100000, threads = 1, repeats = 3;
   std::uint64_t seed = 11;
+  bool cluster_sse2 = false;
 };
 
 double Median(std::vector<double> v) {
@@ -737,7 +738,8 @@ void RunBench(const BenchArgs& a) {
               segmenter.model_config().c_str(), a.rooms, a.repeats, npts, a.threads);
   std::printf("inference %s (from %s and the flags): %d network passes per room\n",
               inf.ToString().c_str(), source.c_str(), inf.network_passes());
-  std::printf("CPU %s, sparse kernels %s\n", CpuModel().c_str(), nn::SparseKernelsInUse().c_str());
+  std::printf("CPU %s, sparse kernels %s, clustering %s\n", CpuModel().c_str(),
+              nn::SparseKernelsInUse().c_str(), pipeline::ClusteringSimdPath());
   std::printf("| step | median ms | min ms | max ms |\n|---|---|---|---|\n");
   for (std::size_t k = 0; k < rows.size(); ++k) {
     const auto& v = ms[k];
@@ -758,6 +760,7 @@ void RunBench(const BenchArgs& a) {
     j["vote_radius"] = inf.vote_radius;
     j["cpu"] = CpuModel();
     j["sparse_kernels"] = nn::SparseKernelsInUse();
+    j["clustering_simd"] = pipeline::ClusteringSimdPath();
     nlohmann::json m;
     for (std::size_t k = 0; k < rows.size(); ++k) m[rows[k].first] = Median(ms[k]);
     j["median_ms"] = m;
@@ -777,8 +780,11 @@ void SetupBench(CLI::App& app) {
   app.add_option("--threads", a->threads, "intra-op threads")->check(CLI::Range(1, 256));
   app.add_option("--seed", a->seed, "room seed");
   app.add_option("--json", a->json, "also write JSON");
+  app.add_flag("--cluster-sse2", a->cluster_sse2,
+               "clustering distance tests on the SSE2 path even where the CPU has AVX2");
   app.callback([a]() {
     nn::SetIntraOpThreads(a->threads);
+    if (a->cluster_sse2) pipeline::SetClusteringAvx2(false);
     RunBench(*a);
   });
 }
