@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <string>
 
 #include "dimr/geometry/error.h"
@@ -91,9 +92,12 @@ class GridTester {
       c_[j] = planes(p, 2);
       d_[j] = planes(p, 3);
       // |float result - exact value| <= ~4 ulp of the summed magnitudes (|x|, |y|, |z| <= 1).
-      margin_[j] = 1e-5 * (std::abs(static_cast<double>(a_[j])) + std::abs(b_[j]) +
-                           std::abs(c_[j]) + std::abs(d_[j]) + std::abs(dilation_)) +
-                   1e-30;
+      const double magnitude = std::abs(static_cast<double>(a_[j])) + std::abs(b_[j]) +
+                               std::abs(c_[j]) + std::abs(d_[j]) + std::abs(dilation_);
+      // A plane whose float value may overflow (inf, or NaN from inf - inf) is never dropped
+      // nor counted in a block's minimum: only the cell test decides, as it did.
+      margin_[j] =
+          magnitude > 1e37 ? std::numeric_limits<double>::infinity() : 1e-5 * magnitude + 1e-30;
     }
     levels_[0].resize(n);
     for (std::size_t j = 0; j < n; ++j) levels_[0][j] = static_cast<int>(j);
