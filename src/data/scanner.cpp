@@ -631,10 +631,10 @@ void ScannerConfig::EnableRealism() {
   axial_noise_z0 = 0.0;
   lateral_noise_px = 0.6;
   disparity_quantum = 0.0029;
-  // A 30 Hz scan of a room has thousands of frames, SynthScan renders 60: each stands for 48
+  // A 30 Hz scan of a room has thousands of frames, SynthScan renders 60: each stands for 40
   // averaged sensor frames (tuned: surface variation of the fused mesh in the real range,
   // docs/synthscan.md).
-  sensor_frames = 48;
+  sensor_frames = 40;
   flying_pixel_probability = 0.5;
   dark_dropout = 0.6;
   glossy_dropout = 0.5;
@@ -815,6 +815,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
   for (std::size_t i = 0; i < salts.size(); ++i) salts[i] = HashCombine(seed, 1000 + i);
   const bool scannet = cfg.density == ScanDensity::kScanNet;
   const bool colour_v2 = cfg.ColourRealism();
+  const double lateral =
+      cfg.sensor_frames > 1
+          ? cfg.lateral_noise_px / std::sqrt(static_cast<double>(cfg.sensor_frames))
+          : cfg.lateral_noise_px;
   const SceneLook look = MakeLook(room, cfg, seed);
   // Per-scene draws of the v2 features come from their own generators, so the default
   // configuration reproduces today's scans bit for bit.
@@ -896,8 +900,10 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
         auto& out = rows[v];
         out.clear();
         for (int u = 0; u < w; ++u) {
-          const double pu = u + 0.5 + cfg.lateral_noise_px * rng.Normal();
-          const double pv = v + 0.5 + cfg.lateral_noise_px * rng.Normal();
+          // (With sensor_frames K the depth is the mean of K measurements: for a locally flat
+          // surface that is the depth at the mean of K jitters, sigma / sqrt(K).)
+          const double pu = u + 0.5 + lateral * rng.Normal();
+          const double pv = v + 0.5 + lateral * rng.Normal();
           const Vec3 dc((pu - cx) / fx, (pv - cy) / fy, 1.0);
           const Vec3 dcn = dc.normalized();
           const Vec3 dw = rot * dcn;

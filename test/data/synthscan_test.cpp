@@ -241,6 +241,44 @@ TEST(SynthCliTest, ShardsReproduceTheFullRunAndBadArgumentsFail) {
   EXPECT_NE(unwritable.find((root / "file").string()), std::string::npos) << unwritable;
   fs::remove_all(root);
 }
+
+TEST(SynthCliTest, ScannerOverridesAreAppliedAndRecordedAndPicturesWritten) {
+  if (!fs::exists(DIMR_CLI)) GTEST_SKIP() << "dimr CLI not built";
+  const fs::path root = fs::temp_directory_path() / ("synth_knobs_" + std::to_string(::getpid()));
+  const std::string common = " --scenes 1 --seed 9 --split test --frames-per-scene 4 --quiet";
+  int status = 0;
+  std::string out = RunCli("synth --out " + (root / "a").string() + common +
+                               " --realism v2 --scanner 'sensor_frames=3 dropout=0.1'",
+                           &status);
+  ASSERT_EQ(status, 0) << out;
+  const std::string index = Slurp(root / "a" / "synthscan.yaml");
+  EXPECT_NE(index.find("sensor_frames=3 "), std::string::npos) << index;
+  EXPECT_NE(index.find("dropout=0.1 "), std::string::npos) << index;
+  EXPECT_NE(index.find("shadow_strength=0.8"), std::string::npos) << index;  // v2 kept
+  // Bad keys / values fail before any work, naming the key.
+  out = RunCli("synth --out " + (root / "b").string() + common + " --scanner 'nope=1'", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("nope"), std::string::npos) << out;
+  out = RunCli("synth --out " + (root / "b").string() + common + " --scanner 'sensor_frames=0'",
+               &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("sensor_frames"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(root / "b" / "scans" / "scene8000_00"));
+  // Two clouds side by side.
+  const fs::path png = root / "pic.png";
+  out = RunCli("stats picture " + (root / "a").string() + " " + (root / "a").string() +
+                   " --width 96 --height 80 --out " + png.string(),
+               &status);
+  ASSERT_EQ(status, 0) << out;
+  const std::string bytes = Slurp(png);
+  ASSERT_GT(bytes.size(), 100u);
+  EXPECT_EQ(bytes.substr(1, 3), "PNG");
+  out = RunCli("stats picture " + (root / "a").string() + " --titles x,y --out " + png.string(),
+               &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(out.find("titles"), std::string::npos) << out;
+  fs::remove_all(root);
+}
 #endif
 
 }  // namespace
