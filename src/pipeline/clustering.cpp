@@ -64,6 +64,19 @@ const CompressTable& Compress() {
   return table;
 }
 
+// Bit i set when point s + i lies strictly within r2 (squared distance) of the query: the same
+// float operations, in the same order, as the scalar path (no FMA).
+__attribute__((target("avx2"))) inline unsigned WithinMaskAvx2(const float* x, const float* y,
+                                                               const float* z, int s, __m256 qx,
+                                                               __m256 qy, __m256 qz, __m256 rr) {
+  const __m256 ex = _mm256_sub_ps(qx, _mm256_loadu_ps(x + s));
+  const __m256 ey = _mm256_sub_ps(qy, _mm256_loadu_ps(y + s));
+  const __m256 ez = _mm256_sub_ps(qz, _mm256_loadu_ps(z + s));
+  const __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)),
+                                  _mm256_mul_ps(ez, ez));
+  return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d2, rr, _CMP_LT_OQ)));
+}
+
 __attribute__((target("avx2,popcnt"))) std::size_t CountWithinAvx2(const float* x, const float* y,
                                                                    const float* z, int s0, int s1,
                                                                    float px, float py, float pz,
@@ -74,13 +87,7 @@ __attribute__((target("avx2,popcnt"))) std::size_t CountWithinAvx2(const float* 
   std::size_t count = 0;
   int s = s0;
   for (; s + 8 <= s1; s += 8) {
-    const __m256 ex = _mm256_sub_ps(qx, _mm256_loadu_ps(x + s));
-    const __m256 ey = _mm256_sub_ps(qy, _mm256_loadu_ps(y + s));
-    const __m256 ez = _mm256_sub_ps(qz, _mm256_loadu_ps(z + s));
-    const __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)),
-                                    _mm256_mul_ps(ez, ez));
-    count += static_cast<std::size_t>(_mm_popcnt_u32(
-        static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d2, rr, _CMP_LT_OQ)))));
+    count += static_cast<std::size_t>(_mm_popcnt_u32(WithinMaskAvx2(x, y, z, s, qx, qy, qz, rr)));
     if (count >= stop) break;
   }
   *next = s;
@@ -98,13 +105,7 @@ __attribute__((target("avx2,popcnt"))) std::size_t CompactWithinAvx2(const float
   std::size_t count = 0;
   int s = s0;
   for (; s + 8 <= s1; s += 8) {
-    const __m256 ex = _mm256_sub_ps(qx, _mm256_loadu_ps(x + s));
-    const __m256 ey = _mm256_sub_ps(qy, _mm256_loadu_ps(y + s));
-    const __m256 ez = _mm256_sub_ps(qz, _mm256_loadu_ps(z + s));
-    const __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(ex, ex), _mm256_mul_ps(ey, ey)),
-                                    _mm256_mul_ps(ez, ez));
-    const unsigned mask =
-        static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(d2, rr, _CMP_LT_OQ)));
+    const unsigned mask = WithinMaskAvx2(x, y, z, s, qx, qy, qz, rr);
     const __m256i ids = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(id + s));
     const __m256i perm = _mm256_load_si256(reinterpret_cast<const __m256i*>(table.lanes[mask]));
     // out has room for the 8 slots of this block past count (count <= s - s0).
