@@ -7,6 +7,7 @@
 #include <limits>
 #include <string>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/kdtree.h"
 #include "dimr/geometry/sampling.h"
@@ -134,25 +135,25 @@ bool PointToPlaneStep(const std::vector<geometry::Vec3>& moved, const std::vecto
   return true;
 }
 
+const config::EnumNames<IcpMetric>& IcpMetricNames() {
+  static const config::EnumNames<IcpMetric> names(
+      "icp.metric",
+      {{IcpMetric::kPointToPoint, "point_to_point"}, {IcpMetric::kPointToPlane, "point_to_plane"}});
+  return names;
+}
+
+const config::EnumNames<IcpBackend>& IcpBackendNames() {
+  static const config::EnumNames<IcpBackend> names(
+      "icp.backend", {{IcpBackend::kOwn, "own"}, {IcpBackend::kPcl, "pcl"}});
+  return names;
+}
+
 }  // namespace
 
-const char* IcpMetricName(IcpMetric m) {
-  return m == IcpMetric::kPointToPlane ? "point_to_plane" : "point_to_point";
-}
-
-IcpMetric ParseIcpMetric(const std::string& s) {
-  if (s == "point_to_point") return IcpMetric::kPointToPoint;
-  if (s == "point_to_plane") return IcpMetric::kPointToPlane;
-  throw InvalidArgument("icp.metric must be point_to_point or point_to_plane (got '" + s + "')");
-}
-
-const char* IcpBackendName(IcpBackend b) { return b == IcpBackend::kPcl ? "pcl" : "own"; }
-
-IcpBackend ParseIcpBackend(const std::string& s) {
-  if (s == "own") return IcpBackend::kOwn;
-  if (s == "pcl") return IcpBackend::kPcl;
-  throw InvalidArgument("icp.backend must be own or pcl (got '" + s + "')");
-}
+const char* IcpMetricName(IcpMetric m) { return IcpMetricNames().Name(m).c_str(); }
+IcpMetric ParseIcpMetric(const std::string& s) { return IcpMetricNames().Parse(s); }
+const char* IcpBackendName(IcpBackend b) { return IcpBackendNames().Name(b).c_str(); }
+IcpBackend ParseIcpBackend(const std::string& s) { return IcpBackendNames().Parse(s); }
 
 bool IcpBackendAvailable(IcpBackend b) {
 #ifdef DIMR_HAVE_PCL

@@ -3,49 +3,51 @@
 #include <cmath>
 #include <sstream>
 
+#include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::pipeline {
 
+namespace {
+
+// Name tables of the config's enums (config::EnumNames: Parse errors list the valid names).
+const config::EnumNames<ReconstructionMode>& ModeNames() {
+  static const config::EnumNames<ReconstructionMode> names(
+      "mode", {{ReconstructionMode::kGeneration, "generation"},
+               {ReconstructionMode::kProjection, "projection"},
+               {ReconstructionMode::kRetrieval, "retrieval"}});
+  return names;
+}
+
+const config::EnumNames<ReconstructionPreset>& PresetNames() {
+  static const config::EnumNames<ReconstructionPreset> names(
+      "preset",
+      {{ReconstructionPreset::kFast, "fast"}, {ReconstructionPreset::kAccurate, "accurate"}});
+  return names;
+}
+
+const config::EnumNames<ScoreRanking>& ScoreNames() {
+  static const config::EnumNames<ScoreRanking> names(
+      "score", {{ScoreRanking::kStage2, "stage2"}, {ScoreRanking::kCombined, "combined"}});
+  return names;
+}
+
+}  // namespace
+
 const char* ReconstructionModeName(ReconstructionMode mode) {
-  switch (mode) {
-    case ReconstructionMode::kGeneration:
-      return "generation";
-    case ReconstructionMode::kProjection:
-      return "projection";
-    case ReconstructionMode::kRetrieval:
-      return "retrieval";
-  }
-  return "?";
+  return ModeNames().Name(mode).c_str();
 }
-
 ReconstructionMode ParseReconstructionMode(const std::string& name) {
-  if (name == "generation") return ReconstructionMode::kGeneration;
-  if (name == "projection") return ReconstructionMode::kProjection;
-  if (name == "retrieval") return ReconstructionMode::kRetrieval;
-  throw InvalidArgument("mode: unknown reconstruction mode '" + name +
-                        "' (generation, projection or retrieval)");
+  return ModeNames().Parse(name);
 }
-
 const char* ReconstructionPresetName(ReconstructionPreset preset) {
-  return preset == ReconstructionPreset::kFast ? "fast" : "accurate";
+  return PresetNames().Name(preset).c_str();
 }
-
 ReconstructionPreset ParseReconstructionPreset(const std::string& name) {
-  if (name == "fast") return ReconstructionPreset::kFast;
-  if (name == "accurate") return ReconstructionPreset::kAccurate;
-  throw InvalidArgument("preset: unknown preset '" + name + "' (fast or accurate)");
+  return PresetNames().Parse(name);
 }
-
-const char* ScoreRankingName(ScoreRanking r) {
-  return r == ScoreRanking::kCombined ? "combined" : "stage2";
-}
-
-ScoreRanking ParseScoreRanking(const std::string& name) {
-  if (name == "stage2") return ScoreRanking::kStage2;
-  if (name == "combined") return ScoreRanking::kCombined;
-  throw InvalidArgument("score: unknown score ranking '" + name + "' (stage2 or combined)");
-}
+const char* ScoreRankingName(ScoreRanking r) { return ScoreNames().Name(r).c_str(); }
+ScoreRanking ParseScoreRanking(const std::string& name) { return ScoreNames().Parse(name); }
 
 void ReconstructorConfig::Validate() const {
   auto bad = [](const std::string& key, const std::string& why) {

@@ -195,7 +195,7 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                   }
                   return "";
                 },
-                [](const C&) -> std::string { return ""; },
+                nullptr,  // Parse checks every value
                 [](const C& c) { return c.colour_norm; }})
           .Add({"vote_exclude", "",
                 "RFS classes kept out of the semantic vote (comma-separated names, e.g. "

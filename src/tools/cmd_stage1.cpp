@@ -9,8 +9,8 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <iterator>
 #include <fstream>
+#include <iterator>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
@@ -816,8 +816,8 @@ void SetupAverage(CLI::App& app) {
 }
 
 // ---------------------------------------------------------------- colour-stats
-// The training rooms' colour statistics: the target of the per-scene colour standardisation
-// (pipeline/colour_norm.h), printed as the model card's `colour_norm=` value.
+// The range of the training rooms' colour statistics that the per-scene colour standardisation
+// maps a scene into (pipeline/colour_norm.h), printed as the model card's `colour_norm=` value.
 void SetupColourStats(CLI::App& app) {
   struct Args {
     std::vector<std::string> scans;
