@@ -68,6 +68,43 @@ std::vector<nn::Stage1Sample> LoadScenes(const std::string& path, int limit, int
   return scenes;
 }
 
+// Several scene sets, in order: each spec is a scans folder or cache as above, optionally
+// with a repeat count "PATH@N" (N in 1..100) that includes its scenes N times — to oversample
+// a small set (e.g. a few SynthScan v2 rooms among many v1 rooms). `limit` applies to the
+// concatenation.
+std::vector<nn::Stage1Sample> LoadSceneSets(const std::vector<std::string>& specs, int limit,
+                                            int threads) {
+  if (specs.empty()) throw InvalidArgument("no scene set given");
+  std::vector<nn::Stage1Sample> all;
+  for (const std::string& spec : specs) {
+    std::string path = spec;
+    int repeat = 1;
+    const std::size_t at = spec.rfind('@');
+    if (at != std::string::npos && !std::filesystem::exists(spec)) {
+      const std::string count = spec.substr(at + 1);
+      const bool digits =
+          !count.empty() && count.size() <= 3 &&
+          std::all_of(count.begin(), count.end(), [](char c) { return c >= '0' && c <= '9'; });
+      if (!digits || std::stoi(count) < 1 || std::stoi(count) > 100) {
+        throw InvalidArgument("scene set '" + spec +
+                              "': the repeat count after '@' must be an integer in 1..100");
+      }
+      repeat = std::stoi(count);
+      path = spec.substr(0, at);
+    }
+    const auto part = LoadScenes(path, 0, threads);
+    for (int r = 0; r < repeat; ++r) all.insert(all.end(), part.begin(), part.end());
+  }
+  if (limit > 0 && static_cast<int>(all.size()) > limit) all.resize(limit);
+  return all;
+}
+
+std::string JoinSpecs(const std::vector<std::string>& specs) {
+  std::string s;
+  for (const auto& p : specs) s += (s.empty() ? "" : ",") + p;
+  return s;
+}
+
 nn::Stage1Config ConfigFromArg(const std::string& text) {
   if (text == "cpu") return nn::Stage1Config::CpuDefault();
   if (text == "reference") return nn::Stage1Config::Reference();
@@ -226,7 +263,8 @@ std::string PassesText(const pipeline::Stage1InferenceConfig& c) {
 
 // ---------------------------------------------------------------- train
 struct TrainArgs {
-  std::string train, val, out = "models/stage1", config = "cpu", device = "cpu";
+  std::vector<std::string> train, val;  // scene sets (LoadSceneSets), concatenated
+  std::string out = "models/stage1", config = "cpu", device = "cpu";
   int epochs = 40, batch = 4, threads = 0, loader_threads = 1, checkpoint_every = 200;
   int limit_train = 0, val_scenes = 20, val_every = 1, data_threads = 2;
   double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
@@ -278,9 +316,9 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
   y << "training:\n";
   y << "  command: \"" << command << "\"\n";
   y << "  seed: " << a.seed << "\n";
-  y << "  train_data: \"" << a.train << "\"\n";
+  y << "  train_data: \"" << JoinSpecs(a.train) << "\"\n";
   y << "  train_scenes: " << train_scenes << "\n";
-  y << "  val_data: \"" << a.val << "\"\n";
+  y << "  val_data: \"" << JoinSpecs(a.val) << "\"\n";
   y << "  val_scenes: " << val_scenes << "\n";
   y << "  steps: " << steps << "\n";
   y << "  batch_size: " << a.batch << "\n";
@@ -336,9 +374,9 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   std::filesystem::create_directories(a.out + "/checkpoint");
   opt.checkpoint_path = a.out + "/checkpoint/stage1.pt";
 
-  const auto train = LoadScenes(a.train, a.limit_train, a.data_threads);
+  const auto train = LoadSceneSets(a.train, a.limit_train, a.data_threads);
   std::vector<nn::Stage1Sample> val;
-  if (!a.val.empty()) val = LoadScenes(a.val, a.val_scenes, a.data_threads);
+  if (!a.val.empty()) val = LoadSceneSets(a.val, a.val_scenes, a.data_threads);
   const nn::ClassWeighting weighting = nn::ClassWeightingNames().Parse(a.class_weights);
   if (weighting != nn::ClassWeighting::kNone) {
     opt.class_weights = nn::SemanticClassWeights(train, weighting, config.num_classes);
@@ -415,9 +453,12 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
 void SetupTrain(CLI::App& app) {
   auto a = std::make_shared<TrainArgs>();
   app.add_option("--train", a->train,
-                 "training scenes: scans folder or `dimr stage1 prepare` cache")
+                 "training scenes: scans folder or `dimr stage1 prepare` cache; repeatable (sets "
+                 "are concatenated), PATH@N includes a set N times (oversampling)")
       ->required();
-  app.add_option("--val", a->val, "validation scenes (scans folder or cache); empty = none");
+  app.add_option("--val", a->val,
+                 "validation scenes (scans folder or cache; repeatable like --train); none = no "
+                 "validation");
   app.add_option("--out", a->out, "output folder (weights, model card, logs, checkpoint/)");
   app.add_option("--config", a->config,
                  "cpu | reference | 'scale=20 rgb=0 widths=16,32,48,64,96,128 reps=2 classes=25'");
@@ -463,12 +504,15 @@ void SetupTrain(CLI::App& app) {
 // ---------------------------------------------------------------- eval
 struct EvalArgs {
   InferenceArgs inference;
-  std::string scans, json, render_dir;
+  std::vector<std::string> scans;  // scene sets (LoadSceneSets)
+  std::string json, render_dir;
   int limit = 0, render = 0, threads = 2;
 };
 
 void AddSceneFlags(CLI::App& app, EvalArgs* a) {
-  app.add_option("--scans", a->scans, "scenes: scans folder or `dimr stage1 prepare` cache")
+  app.add_option("--scans", a->scans,
+                 "scenes: scans folder or `dimr stage1 prepare` cache; repeatable (concatenated), "
+                 "PATH@N includes a set N times")
       ->required();
   app.add_option("--limit", a->limit, "first N scenes only");
   app.add_option("--threads", a->threads, "threads reading scene folders");
@@ -479,7 +523,7 @@ void RunEval(const EvalArgs& a) {
   const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
   const pipeline::Stage1Segmenter segmenter =
       pipeline::Stage1Segmenter::Load(a.inference.model, inf);
-  auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  auto scenes = LoadSceneSets(a.scans, a.limit, a.threads);
   std::printf("model %s (%s), %zu scenes\n", a.inference.model.c_str(),
               segmenter.model_config().c_str(), scenes.size());
   const std::string passes = PassesText(inf);
@@ -539,7 +583,7 @@ void RunCalibrate(const CalibrateArgs& c) {
   const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
   const pipeline::Stage1Segmenter segmenter =
       pipeline::Stage1Segmenter::Load(a.inference.model, inf);
-  const auto scenes = LoadScenes(a.scans, a.limit, a.threads);
+  const auto scenes = LoadSceneSets(a.scans, a.limit, a.threads);
   if (c.options.folds > static_cast<int>(scenes.size())) {
     throw InvalidArgument("--folds " + std::to_string(c.options.folds) + " exceeds the " +
                           std::to_string(scenes.size()) + " scenes");

@@ -87,6 +87,33 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_EQ(j["rotations"].get<int>(), 1);  // no card recommendation yet: plain inference
   EXPECT_FALSE(j["mirror"].get<bool>());
 
+  // Scene sets: --scans / --train repeat and concatenate, PATH@N includes a set N times (the
+  // same scenes twice give the same mIoU over twice the points); a bad count is an error.
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --scans " + d + "/synth --json " + d + "/eval_sets.json");
+  ASSERT_EQ(rc, 0) << out;
+  const nlohmann::json js = nlohmann::json::parse(ReadFileText(d + "/eval_sets.json"));
+  EXPECT_EQ(js["scenes"].get<int>(), 4);
+  EXPECT_EQ(js["points"].get<long long>(), 2 * points);
+  EXPECT_NEAR(js["miou_present"].get<double>(), j["miou_present"].get<double>(), 1e-9);
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin@3 --json " + d + "/eval_rep.json");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_EQ(nlohmann::json::parse(ReadFileText(d + "/eval_rep.json"))["scenes"].get<int>(), 6);
+  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin@2 --train " + d +
+                             "/cache.bin --out " + d + "/model_sets" +
+                             " --config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25' --epochs 1 "
+                             "--batch 1 --threads 1 --quiet --seed 3");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("after 6 steps"), std::string::npos) << out;  // 3 x 2 scenes, batch 1
+  EXPECT_NE(ReadFileText(d + "/model_sets/model.yaml").find("train_scenes: 6"), std::string::npos);
+  for (const char* bad : {"@0", "@x", "@101"}) {
+    std::tie(rc, out) =
+        RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin" + bad);
+    EXPECT_NE(rc, 0) << bad;
+    EXPECT_NE(out.find("repeat count after '@'"), std::string::npos) << out;
+  }
+
   // The card's recommended_inference sets the defaults; flags override them; a bad value is
   // an error naming the card.
   std::ofstream(model + "/model.yaml", std::ios::app)
