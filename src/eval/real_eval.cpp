@@ -131,6 +131,20 @@ std::vector<int> PointsInScan2CadBox(const std::vector<geometry::Vec3>& points,
   return out;
 }
 
+std::vector<int> DropLabelled(const std::vector<int>& idx, const std::vector<int>& label,
+                              const std::vector<int>& drop) {
+  std::vector<int> out;
+  out.reserve(idx.size());
+  for (int i : idx) {
+    if (i < 0 || static_cast<std::size_t>(i) >= label.size()) {
+      throw InvalidArgument("DropLabelled: point index " + std::to_string(i) + " outside the " +
+                            std::to_string(label.size()) + " labels");
+    }
+    if (std::find(drop.begin(), drop.end(), label[i]) == drop.end()) out.push_back(i);
+  }
+  return out;
+}
+
 double PointIoU(const std::vector<int>& a, const std::vector<int>& b) {
   const std::unordered_set<int> sa(a.begin(), a.end());
   const std::unordered_set<int> sb(b.begin(), b.end());

@@ -97,6 +97,7 @@ struct RealEvalArgs {
   InferenceArgs inference;
   bool grey = false;
   double box_margin = 0.0;
+  std::vector<std::string> box_exclude;  // RFS class names dropped from the box GT sets
   double iou = 0.5;
   double voxel = 0.0;
 };
@@ -186,12 +187,23 @@ void RunRealEval(const RealEvalArgs& a) {
     if (!ann) throw ParseError(a.scan2cad, "no entry with id_scan '" + c.name + "'");
     const Eigen::Matrix4d scan_from_world =
         data::Scan2CadToAlignedScene(Eigen::Matrix4d::Identity(), *ann);
+    std::vector<int> box_exclude;
+    std::string excluded;
+    for (const std::string& name : a.box_exclude) {
+      const auto it = std::find(names25.begin(), names25.end(), name);
+      if (it == names25.end()) {
+        throw InvalidArgument("--box-exclude: '" + name + "' is not an RFS class name");
+      }
+      box_exclude.push_back(static_cast<int>(it - names25.begin()));
+      excluded += (excluded.empty() ? "" : ", ") + name;
+    }
     std::vector<std::string> ids;
     for (const auto& m : ann->aligned_models) {
       const int cls = labels::CadClassFromSynset(m.catid_cad);
       if (cls < 0) continue;
       const Eigen::Matrix4d to_scan = eval::Scan2CadModelToScan(*ann, m);
-      gt_sets.push_back(eval::PointsInScan2CadBox(c.points, m, to_scan, a.box_margin));
+      gt_sets.push_back(eval::DropLabelled(
+          eval::PointsInScan2CadBox(c.points, m, to_scan, a.box_margin), gt25, box_exclude));
       gt_class.push_back(cls);
       gt_boxes.push_back(data::Scan2CadModelBox(m, scan_from_world));
       ids.push_back(m.id_cad);
@@ -201,15 +213,40 @@ void RunRealEval(const RealEvalArgs& a) {
     std::printf(
         "\n#### Scan2CAD objects (GT = scan points inside the aligned CAD box%s)\n\n| # | class "
         "| CAD | GT points | best IoU, same class | best IoU, any class (its class) | found "
-        "|\n|---|---|---|---|---|---|---|\n",
-        a.box_margin != 0 ? (", margin " + Num(a.box_margin, 3) + " m").c_str() : "");
+        "| GT labels (labels.ply) | predicted as |\n|---|---|---|---|---|---|---|---|---|\n",
+        (std::string(a.box_margin != 0 ? ", margin " + Num(a.box_margin, 3) + " m" : "") +
+         (excluded.empty() ? "" : ", without points the scan labels " + excluded))
+            .c_str());
+    // The two largest classes among an object's box points, by the scan's labels and by the
+    // prediction: says whether a miss is the box (floor / other objects inside it), the
+    // semantics or the instance grouping.
+    auto top_classes = [&](const std::vector<int>& idx, const std::vector<int>& label) {
+      std::vector<long long> hist(labels::kNumRfsClasses + 1, 0);
+      for (int i : idx) {
+        const int l = label[i];
+        ++hist[l >= 0 && l < labels::kNumRfsClasses ? l : labels::kNumRfsClasses];
+      }
+      std::string s;
+      for (int rank = 0; rank < 2 && !idx.empty(); ++rank) {
+        const auto it = std::max_element(hist.begin(), hist.end());
+        if (*it == 0) break;
+        const int l = static_cast<int>(it - hist.begin());
+        s += (s.empty() ? "" : ", ") +
+             (l < labels::kNumRfsClasses ? names25[l] : std::string("(none)")) + " " +
+             std::to_string(static_cast<int>(std::lround(100.0 * *it / idx.size()))) + " %";
+        *it = 0;
+      }
+      return s.empty() ? std::string("-") : s;
+    };
     for (std::size_t k = 0; k < matches.size(); ++k) {
       const auto& m = matches[k];
       found += m.found;
-      std::printf("| %zu | %s | %.8s | %d | %s | %s (%s) | %s |\n", k, names8[m.cad_class].c_str(),
-                  ids[k].c_str(), m.gt_points, Num(m.best_iou).c_str(), Num(m.best_iou_any).c_str(),
+      std::printf("| %zu | %s | %.8s | %d | %s | %s (%s) | %s | %s | %s |\n", k,
+                  names8[m.cad_class].c_str(), ids[k].c_str(), m.gt_points, Num(m.best_iou).c_str(),
+                  Num(m.best_iou_any).c_str(),
                   m.best_any_class >= 0 ? names8[m.best_any_class].c_str() : "-",
-                  m.found ? "yes" : "no");
+                  m.found ? "yes" : "no", top_classes(gt_sets[k], gt25).c_str(),
+                  top_classes(gt_sets[k], r.semantic).c_str());
       j["objects"].push_back({{"class", names8[m.cad_class]},
                               {"id_cad", ids[k]},
                               {"gt_points", m.gt_points},
@@ -222,6 +259,7 @@ void RunRealEval(const RealEvalArgs& a) {
         "%s); %zu predicted instances\n",
         found, matches.size(), Num(a.iou, 2).c_str(), r.instances.size());
     j["found"] = found;
+    j["box_exclude"] = a.box_exclude;
     j["objects_total"] = matches.size();
   }
 
@@ -283,6 +321,11 @@ void SetupRealEval(CLI::App& app) {
       "one)");
   AddInferenceFlags(app, &a->inference);
   app.add_flag("--grey", a->grey, "set every colour to grey (0.5): a geometry-only measurement");
+  app.add_option("--box-exclude", a->box_exclude,
+                 "drop the scan's points of these RFS classes (by labels.ply, e.g. floor wall) "
+                 "from every box's GT set: a box that reaches the floor holds floor points no "
+                 "instance annotation counts as the object (default: none, the plain box)")
+      ->expected(1, -1);
   app.add_option("--box-margin", a->box_margin,
                  "grow (or shrink, < 0) the Scan2CAD boxes by this much per side [m]");
   app.add_option("--iou", a->iou, "point IoU for an object to count as found")

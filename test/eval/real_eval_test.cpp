@@ -125,5 +125,19 @@ TEST(RealEval, PointIouAndObjectMatching) {
   EXPECT_THROW(MatchObjects({g0}, {}, preds), InvalidArgument);
 }
 
+TEST(RealEval, DropLabelledRemovesOnlyTheGivenClasses) {
+  // 6 points: floor (1), table (6), wall (0), unlabelled (-1), table, floor.
+  const std::vector<int> label = {1, 6, 0, -1, 6, 1};
+  EXPECT_EQ(DropLabelled({0, 1, 2, 3, 4, 5}, label, {1, 0}), (std::vector<int>{1, 3, 4}));
+  EXPECT_EQ(DropLabelled({5, 4, 3}, label, {}), (std::vector<int>{5, 4, 3}));  // order kept
+  EXPECT_EQ(DropLabelled({0, 5}, label, {1}), std::vector<int>{});
+  // A table box holding the table (2 points) and 2 floor points: a perfect table
+  // prediction scores 0.5 against the raw box, 1 once the floor is dropped.
+  EXPECT_DOUBLE_EQ(PointIoU({1, 4}, {0, 1, 4, 5}), 0.5);
+  EXPECT_DOUBLE_EQ(PointIoU({1, 4}, DropLabelled({0, 1, 4, 5}, label, {1})), 1.0);
+  EXPECT_THROW(DropLabelled({6}, label, {1}), InvalidArgument);
+  EXPECT_THROW(DropLabelled({-1}, label, {1}), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::eval

@@ -69,6 +69,14 @@ std::vector<int> PointsInScan2CadBox(const std::vector<geometry::Vec3>& points,
                                      const data::Scan2CadModel& model,
                                      const Eigen::Matrix4d& model_to_scan, double margin = 0.0);
 
+// The indices of `idx` whose label is not in `drop` (labels indexed by point; a label outside
+// `drop`, including -1, is kept). Used to remove the scan's structure points (floor, wall)
+// from a box's GT set: an aligned box that reaches the floor holds floor points that no
+// instance annotation would count as the object. Throws dimr::InvalidArgument on an index
+// outside `label`.
+std::vector<int> DropLabelled(const std::vector<int>& idx, const std::vector<int>& label,
+                              const std::vector<int>& drop);
+
 // |a n b| / |a u b| of two index sets (duplicates ignored); 0 when both are empty.
 double PointIoU(const std::vector<int>& a, const std::vector<int>& b);
 
