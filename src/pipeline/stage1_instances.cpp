@@ -65,15 +65,20 @@ std::vector<ScoredInstance> ExtractStage1Instances(
   std::vector<Proposal> proposals =
       MultiScaleClusters(points, offsets, cad_label, config.clustering);
   // Size filter before NMS, as the reference (section 3.6, steps 2 and 3).
+  // The semantic classes of each CAD class, ascending (the order of the sums).
+  std::vector<std::vector<std::size_t>> classes_of(kNumCadClasses);
+  for (std::size_t c = 0; c < num_sem; ++c) {
+    if (rfs_to_cad[c] >= 0 && rfs_to_cad[c] < kNumCadClasses)
+      classes_of[rfs_to_cad[c]].push_back(c);
+  }
   std::vector<Proposal> large;
   for (auto& p : proposals) {
     if (static_cast<int>(p.points.size()) <= config.min_points) continue;
     double sum = 0.0;
+    const std::vector<std::size_t>& classes = classes_of[p.label];
     for (int i : p.points) {
       const float* row = semantic_prob.data() + static_cast<std::size_t>(i) * num_sem;
-      for (std::size_t c = 0; c < num_sem; ++c) {
-        if (rfs_to_cad[c] == p.label) sum += row[c];
-      }
+      for (std::size_t c : classes) sum += row[c];
     }
     p.score = sum / static_cast<double>(p.points.size());
     if (!std::isfinite(p.score)) {
@@ -154,7 +159,9 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   std::vector<int> out = semantic;
   if (config.radius == 0.0) return out;
   const std::vector<std::vector<int>> clusters =
-      BfsClusters(shifted, thing_label, config.radius, config.min_points);
+      config.neighbour_cap
+          ? BfsClusters(shifted, thing_label, config.radius, config.min_points)
+          : RadiusComponents(shifted, thing_label, config.radius, config.min_points);
   std::vector<double> sum(num_classes);
   for (const auto& cluster : clusters) {
     std::fill(sum.begin(), sum.end(), 0.0);

@@ -220,6 +220,12 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
               "cluster_min_points", [](C& c) -> int& { return c.cluster_min_points; }, "points",
               "smallest cluster a pass keeps", 1, 1000000000)
           .WrittenIf([](const C& c) { return c.cluster_min_points != d.cluster_min_points; })
+          .Flag(
+              "cluster_cap", [](C& c) -> bool& { return c.cluster_cap; },
+              "the reference's 1000-neighbour ball-query cap in the clustering passes and the "
+              "vote (exact BFS); 0 = approximate mode: connected components without the cap "
+              "(3-8x faster on dense rooms, docs/benchmarks.md)")
+          .WrittenIf([](const C& c) { return c.cluster_cap != d.cluster_cap; })
           .Number(
               "nms", [](C& c) -> double& { return c.nms_iou; }, "", "point-IoU NMS threshold", 0.0,
               1.0)
@@ -291,6 +297,8 @@ Stage1InstanceConfig Stage1InferenceConfig::InstanceConfig() const {
   Stage1InstanceConfig cfg;
   cfg.clustering.passes = passes;
   cfg.clustering.min_points = cluster_min_points;
+  cfg.clustering.neighbour_cap = cluster_cap;
+  cfg.semantic_vote.neighbour_cap = cluster_cap;
   cfg.nms_iou = nms_iou;
   cfg.min_points = min_points;
   cfg.semantic_vote.radius = vote_radius;

@@ -20,6 +20,9 @@ struct SemanticVoteConfig {
   // cluster is given them (e.g. small wall-mounted or table-top objects whose clusters merge
   // with their larger neighbours).
   std::vector<int> excluded_classes;
+  // The reference's neighbour cap in the vote's BFS (false: RadiusComponents, as
+  // ClusteringConfig::neighbour_cap).
+  bool neighbour_cap = true;
   // Throws dimr::InvalidArgument naming the bad field (radius negative or not finite,
   // min_points < 1, a negative excluded class).
   void Validate() const;

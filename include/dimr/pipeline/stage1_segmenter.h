@@ -75,6 +75,9 @@ struct Stage1InferenceConfig {
   // smallest cluster, point-IoU NMS threshold and the smallest proposal kept (> min_points).
   std::vector<ClusterPass> passes = ClusteringConfig().passes;
   int cluster_min_points = 10;
+  // The reference's ball-query neighbour cap (exact); false: the approximate, faster
+  // connected-components mode (ClusteringConfig::neighbour_cap) for the passes and the vote.
+  bool cluster_cap = true;
   double nms_iou = 0.3;
   int min_points = 100;
   // A cloud spanning more than this (metres, any axis) is rejected: not a room in metres
