@@ -379,25 +379,16 @@ std::vector<Stage1Sample> ReadStage1Samples(const std::string& path) {
 }
 
 // ---------------------------------------------------------------- network frame
-NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
-  if (points.empty()) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
-  Eigen::Vector3f lo = points[0], hi = points[0];
-  std::vector<float> z(points.size());
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    if (!Finite(points[i])) {
-      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
-    }
-    lo = lo.cwiseMin(points[i]);
-    hi = hi.cwiseMax(points[i]);
-    z[i] = points[i].z();
-  }
+namespace {
+
+// The floor search of EstimateNetworkFrame as the sorted sweep it was first written as: sort z,
+// walk the occupied 2 cm bins upwards from the lowest point, take the first bin with `need`
+// points and the median of it and the next bin. Only for clouds EstimateNetworkFrame's
+// histogram does not cover.
+double FloorBySortedSweep(std::vector<float> z, std::size_t need, double z0, double bin) {
   std::sort(z.begin(), z.end());
   const std::size_t n = z.size();
-  const std::size_t need = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(0.02 * n)));
-  constexpr double kBin = 0.02;
-  const double z0 = z[0];
-  auto bin_of = [&](float v) { return static_cast<long long>(std::floor((v - z0) / kBin)); };
-  // Sorted sweep over the occupied 2 cm bins (no dense histogram: robust to far outliers).
+  auto bin_of = [&](float v) { return static_cast<long long>(std::floor((v - z0) / bin)); };
   double floor_z = z[std::min(n - 1, static_cast<std::size_t>(0.01 * (n - 1)))];
   for (std::size_t begin = 0; begin < n;) {
     const long long b = bin_of(z[begin]);
@@ -412,6 +403,73 @@ NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
       break;
     }
     begin = end;
+  }
+  return floor_z;
+}
+
+}  // namespace
+
+NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
+  if (points.empty()) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
+  Eigen::Vector3f lo = points[0], hi = points[0];
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (!Finite(points[i])) {
+      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
+    }
+    lo = lo.cwiseMin(points[i]);
+    hi = hi.cwiseMax(points[i]);
+  }
+  const std::size_t n = points.size();
+  const std::size_t need = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(0.02 * n)));
+  constexpr double kBin = 0.02;
+  const double z0 = lo.z();
+  // The sorted sweep's answer without sorting (a sort of z was ~6 ms of every 100k-point
+  // pass): the lowest bin b holding >= need points, found on a histogram of the bins
+  // [0, kBins) above the lowest point; the floor is the element of rank (count(b) +
+  // count(b + 1)) / 2 among the points of bins b and b + 1 (nth_element: the same value the
+  // sweep reads from the sorted array). Bin numbers are the sweep's floor((z - z0) / bin).
+  // Clouds whose answer lies beyond the histogram (no such bin below kBins - 1 although
+  // some point is above it) take the sweep itself.
+  constexpr long long kBins = 1 << 16;  // 1.3 km of 2 cm bins
+  std::vector<std::uint32_t> count(kBins, 0);
+  bool beyond = false;
+  for (const auto& p : points) {
+    const double b = std::floor((p.z() - z0) / kBin);
+    if (b < kBins) {
+      ++count[static_cast<std::size_t>(b)];
+    } else {
+      beyond = true;
+    }
+  }
+  long long found = -1;
+  for (long long b = 0; b < kBins - 1; ++b) {
+    if (count[b] >= need) {
+      found = b;
+      break;
+    }
+  }
+  double floor_z = 0;
+  if (found >= 0) {
+    const std::size_t rank = (count[found] + count[found + 1]) / 2;
+    std::vector<float> z;
+    z.reserve(count[found] + count[found + 1]);
+    for (const auto& p : points) {
+      const double b = std::floor((p.z() - z0) / kBin);
+      if (b == found || b == found + 1) z.push_back(p.z());
+    }
+    std::nth_element(z.begin(), z.begin() + rank, z.end());
+    floor_z = z[rank];
+  } else if (!beyond && count[kBins - 1] < need) {
+    // No bin qualifies: the 1st percentile.
+    std::vector<float> z(n);
+    for (std::size_t i = 0; i < n; ++i) z[i] = points[i].z();
+    const std::size_t k = std::min(n - 1, static_cast<std::size_t>(0.01 * (n - 1)));
+    std::nth_element(z.begin(), z.begin() + k, z.end());
+    floor_z = z[k];
+  } else {
+    std::vector<float> z(n);
+    for (std::size_t i = 0; i < n; ++i) z[i] = points[i].z();
+    floor_z = FloorBySortedSweep(std::move(z), need, z0, kBin);
   }
   NetworkFrame frame;
   frame.origin = Eigen::Vector3f(0.5f * (lo.x() + hi.x()), 0.5f * (lo.y() + hi.y()),

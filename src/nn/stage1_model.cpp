@@ -28,6 +28,7 @@
 #include "dimr/nn/model_archive.h"
 #include "dimr/nn/sparse_ops.h"
 #include "dimr/nn/sparse_unet.h"
+#include "stage1_heads.h"
 
 namespace dimr::nn {
 
@@ -307,8 +308,11 @@ struct Stage1Model::Impl {
   // The U-Net on voxelised points; `voxel_heads` runs the heads on its voxel rows (inference)
   // instead of the gathered point rows (training: BatchNorm statistics are per point).
   struct Pass {
-    HeadOutput h;                  // [N, ...] point rows, or [M, ...] voxel rows
-    torch::Tensor point_to_voxel;  // [N] int64, CPU (voxel heads only)
+    // [N, ...] point rows, or [M, ...] voxel rows; voxel heads (CPU, contiguous) hold
+    // probabilities: h.semantic the semantic softmax, the first 12 columns of h.heading the
+    // bin softmax (written over the logits).
+    HeadOutput h;
+    torch::Tensor point_to_voxel, voxel_offsets, voxel_points;  // voxel heads: the map, int64
   };
   Pass Run(const torch::Tensor& voxel, const torch::Tensor& features, int64_t batch_size,
            bool voxel_heads, Stage1Timing* timing) {
@@ -326,7 +330,16 @@ struct Stage1Model::Impl {
     Pass pass;
     if (voxel_heads) {
       pass.h = net->HeadsFolded(y.features());
-      pass.point_to_voxel = v.map.point_to_voxel.to(torch::kCPU).to(torch::kInt64).contiguous();
+      const auto cpu = [](const torch::Tensor& t) { return t.to(torch::kCPU).contiguous(); };
+      pass.h.semantic = cpu(pass.h.semantic);
+      pass.h.offset = cpu(pass.h.offset);
+      pass.h.heading = cpu(pass.h.heading);
+      // The semantic and heading-bin softmax in place (stage1_heads: one pass over the rows,
+      // no slice copies; ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
+      stage1_heads::SoftmaxInPlace(HeadsView(pass));
+      pass.point_to_voxel = cpu(v.map.point_to_voxel.to(torch::kInt64));
+      pass.voxel_offsets = cpu(v.map.voxel_offsets.to(torch::kInt64));
+      pass.voxel_points = cpu(v.map.voxel_points.to(torch::kInt64));
     } else {
       pass.h = net->Heads(Devoxelize(y.features(), v.map));
     }
@@ -353,9 +366,94 @@ struct Stage1Model::Impl {
     const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
     *frame = in.frame;
     const int64_t n = static_cast<int64_t>(scene.size);
-    return Run(FromVector(in.voxel, torch::kInt32, {n, 4}),
-               FromVector(in.features, torch::kFloat32, {n, in.feature_channels}).to(device), 1,
+    // Views of `in`, which outlives Run (Voxelize keeps copies of what it needs).
+    return Run(View(in.voxel, torch::kInt32, {n, 4}),
+               View(in.features, torch::kFloat32, {n, in.feature_channels}).to(device), 1,
                /*voxel_heads=*/true, timing);
+  }
+
+  // The same for the scene moved by p -> centre + R(theta) (sign * (p - centre)) in x-y (z
+  // kept), without MakeStage1NetworkInput: the moved z are the scene's, so the network frame's
+  // floor is the plain pass's `floor_z` (no second floor search) and only its x-y centre is new;
+  // voxels and features are written straight into the tensors with MakeStage1NetworkInput's
+  // arithmetic (the same numbers; Stage1Heads.AugmentedPassesMatchPerPointAccumulation
+  // compares with Predict on the moved points). `moved` is scratch.
+  Pass ForwardMovedScene(const ScenePoints& scene, const Eigen::Vector2d& centre, double sign,
+                         double theta, float floor_z, std::vector<Eigen::Vector3f>* moved,
+                         Stage1Timing* timing) {
+    const std::size_t n = scene.size;
+    const double c = std::cos(theta), s = std::sin(theta);
+    moved->resize(n);
+    Eigen::Vector3f* mp = moved->data();
+    Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY);
+    Eigen::Vector3f hi = Eigen::Vector3f::Constant(-INFINITY);
+    for (std::size_t i = 0; i < n; ++i) {
+      const double x = sign * (scene.points[i].x() - centre.x());
+      const double y = scene.points[i].y() - centre.y();
+      mp[i] = Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
+                              static_cast<float>(centre.y() + s * x + c * y), scene.points[i].z());
+      lo = lo.cwiseMin(mp[i]);
+      hi = hi.cwiseMax(mp[i]);
+    }
+    const std::string who = "stage1 input: scene '" + scene.name + "'";
+    if (!lo.allFinite() || !hi.allFinite()) {
+      throw InvalidArgument(who + ": a rotated point is not finite");
+    }
+    const Stage1InputConfig& input = config.input;
+    const Eigen::Vector3f origin(0.5f * (lo.x() + hi.x()), 0.5f * (lo.y() + hi.y()), floor_z);
+    const int C = input.feature_channels();
+    const float scale = static_cast<float>(input.scale);
+    // Float rounding is monotone, so the smallest / largest (p - origin) * scale over the points
+    // are those of the box corners: MakeStage1NetworkInput's minimum without its first loop.
+    const Eigen::Vector3f qmin = (lo - origin) * scale;
+    const Eigen::Vector3f qmax = (hi - origin) * scale;
+    for (int a = 0; a < 3; ++a) {
+      const double span = std::floor(static_cast<double>(qmax[a]) - qmin[a]) + 1;
+      if (!(span <= 65536)) {
+        char buf[160];
+        std::snprintf(buf, sizeof(buf),
+                      " spans %.1f m along %c = %.0f voxels at scale %g (at most 65536) when "
+                      "rotated for test-time augmentation",
+                      (qmax[a] - qmin[a]) / scale, "xyz"[a], span, input.scale);
+        throw InvalidArgument(who + buf);
+      }
+    }
+    torch::Tensor voxel = torch::empty({static_cast<int64_t>(n), 4}, torch::kInt32);
+    torch::Tensor features = torch::empty({static_cast<int64_t>(n), C}, torch::kFloat32);
+    float* f = features.data_ptr<float>();
+    std::int32_t* vx = voxel.data_ptr<std::int32_t>();
+    const double q0[3] = {qmin.x(), qmin.y(), qmin.z()};
+    for (std::size_t i = 0; i < n; ++i) {
+      const Eigen::Vector3f p = mp[i] - origin;
+      const Eigen::Vector3f q = p * scale;
+      vx[4 * i] = 0;
+      for (int a = 0; a < 3; ++a) {
+        f[C * i + a] = p[a];
+        // floor(q - qmin) of a non-negative difference (q >= qmin) is its truncation.
+        vx[4 * i + 1 + a] = static_cast<std::int32_t>(static_cast<double>(q[a]) - q0[a]);
+      }
+      if (input.use_rgb) {
+        for (int a = 0; a < 3; ++a) f[C * i + 3 + a] = scene.colors[i][a] - 0.5f;
+      }
+    }
+    return Run(voxel, features.to(device), 1, /*voxel_heads=*/true, timing);
+  }
+
+  // The voxel-head tensors of a pass as the raw views stage1_heads reads.
+  static stage1_heads::VoxelHeads HeadsView(const Pass& p) {
+    stage1_heads::VoxelHeads h;
+    h.prob = p.h.semantic.data_ptr<float>();
+    h.offset = p.h.offset.data_ptr<float>();
+    h.heading = p.h.heading.data_ptr<float>();
+    h.voxels = p.h.semantic.size(0);
+    h.classes = static_cast<int>(p.h.semantic.size(1));
+    return h;
+  }
+
+  template <typename T>
+  static torch::Tensor View(const std::vector<T>& v, torch::Dtype dtype,
+                            std::vector<int64_t> shape) {
+    return torch::from_blob(const_cast<T*>(v.data()), shape, torch::TensorOptions().dtype(dtype));
   }
 };
 
@@ -458,34 +556,6 @@ Stage1Output Stage1Model::PredictAugmented(const Stage1Sample& sample, int rotat
                           mirror, with_features, timing);
 }
 
-namespace {
-
-// The network's outputs of one pass on the CPU, contiguous: semantic softmax N x C, offsets
-// N x 3, heading bin softmax and residuals N x 12 each.
-struct PassTensors {
-  torch::Tensor prob, offset, heading_prob, heading_residual;
-};
-
-// dst[j] += src[j] (vectorised: the arrays never overlap).
-void AddRow(float* __restrict dst, const float* __restrict src, int count) {
-  for (int j = 0; j < count; ++j) dst[j] += src[j];
-}
-
-PassTensors ToPassTensors(const HeadOutput& h) {
-  PassTensors p;
-  p.prob = torch::softmax(h.semantic, 1).to(torch::kCPU).contiguous();
-  p.offset = h.offset.to(torch::kCPU).contiguous();
-  // (softmax of a contiguous copy: on the strided slice it is several times slower)
-  p.heading_prob = torch::softmax(h.heading.slice(1, 0, kHeadingBins).contiguous(), 1)
-                       .to(torch::kCPU)
-                       .contiguous();
-  p.heading_residual =
-      h.heading.slice(1, kHeadingBins, 2 * kHeadingBins).to(torch::kCPU).contiguous();
-  return p;
-}
-
-}  // namespace
-
 Stage1Output Stage1Model::Predict(const ScenePoints& scene, bool with_features,
                                   Stage1Timing* timing) const {
   return PredictAugmented(scene, 1, false, with_features, timing);
@@ -497,149 +567,81 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     throw InvalidArgument("stage1 predict: rotations must divide " + std::to_string(kHeadingBins) +
                           " (1, 2, 3, 4, 6, 12), got " + std::to_string(rotations));
   }
+  const auto t_start = std::chrono::steady_clock::now();
   torch::NoGradGuard no_grad;
   impl_->net->eval();
   Stage1Timing local;
+  auto add_network_time = [&](const Stage1Timing& t) {
+    local.voxelize_ms += t.voxelize_ms;
+    local.kernel_map_ms += t.kernel_map_ms;
+    local.unet_ms += t.unet_ms;
+  };
   Stage1Output out;
   const std::size_t n = scene.size;
-  const int nc = impl_->config.num_classes;
-  // Every pass is mapped back to the input frame on its voxel rows (M, a few times fewer
-  // than the points) into one row per voxel: [semantic prob (nc) | heading prob (12) |
-  // heading residual (12) | offset (3)]; each point then adds its voxel's row to its own
-  // row of one N x row accumulator, split into `out` at the end. The gather of voxel rows
-  // is bound by memory latency (a pass's voxel rows are ~5 MB, in another order than the
-  // points): the rows a few points ahead are prefetched.
-  const int off_sem = 0, off_hp = nc, off_hr = nc + kHeadingBins, off_o = nc + 2 * kHeadingBins;
-  const int row = off_o + 3;
-  std::vector<float> acc;
-  std::vector<float> vrow;
-  // Adds one pass. A heading h of the input is sign * h (+ pi if mirrored) + theta in the
-  // pass's scene: bin b here is bin (m * 6 + sign * b + shift) there, residual times sign;
-  // offsets are rotated back by -theta, then mirrored.
-  auto add_pass = [&](const Impl::Pass& pass, int m, int k, bool first) {
-    const PassTensors p = ToPassTensors(pass.h);
-    const int64_t mv = p.prob.size(0);
-    const float* rp = p.prob.data_ptr<float>();
-    const float* ro = p.offset.data_ptr<float>();
-    const float* rhb = p.heading_prob.data_ptr<float>();
-    const float* rhr = p.heading_residual.data_ptr<float>();
-    const double sign = m == 1 ? -1.0 : 1.0;
-    const double theta = 2.0 * M_PI * k / rotations;
-    const double c = std::cos(theta), s = std::sin(theta);
-    const int shift = kHeadingBins * k / rotations;
-    int to[kHeadingBins];
-    for (int b = 0; b < kHeadingBins; ++b) {
-      to[b] = ((m * kHeadingBins / 2 + (m == 1 ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
-              kHeadingBins;
-    }
-    const float fsign = static_cast<float>(sign);
-    vrow.resize(static_cast<std::size_t>(mv) * row);
-    for (int64_t v = 0; v < mv; ++v) {
-      float* r = vrow.data() + v * row;
-      std::copy_n(rp + v * nc, nc, r + off_sem);
-      const float* rhbi = rhb + v * kHeadingBins;
-      const float* rhri = rhr + v * kHeadingBins;
-      for (int b = 0; b < kHeadingBins; ++b) {
-        r[off_hp + b] = rhbi[to[b]];
-        r[off_hr + b] = fsign * rhri[to[b]];
-      }
-      const double ox = ro[3 * v], oy = ro[3 * v + 1];
-      r[off_o] = static_cast<float>(sign * (c * ox + s * oy));
-      r[off_o + 1] = static_cast<float>(-s * ox + c * oy);
-      r[off_o + 2] = ro[3 * v + 2];
-    }
-    const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();
-    float* __restrict a = acc.data();
-    const float* __restrict src = vrow.data();
-    constexpr std::size_t kAhead = 16;
+  const stage1_heads::RowLayout layout(impl_->config.num_classes);
+  const int passes = rotations * (mirror ? 2 : 1);
+  Stage1Timing t;
+  const Impl::Pass plain = impl_->ForwardSceneVoxels(scene, &t, &out.frame);
+  add_network_time(t);
+  if (with_features) {
+    const torch::Tensor f = plain.h.features.to(torch::kCPU).contiguous();
+    const int64_t c0 = f.size(1);
+    const float* pf = f.data_ptr<float>();
+    const int64_t* p2v = plain.point_to_voxel.data_ptr<int64_t>();
+    out.features.resize(n * c0);
     for (std::size_t i = 0; i < n; ++i) {
-      if (i + kAhead < n) {
-        const float* ahead = src + p2v[i + kAhead] * row;
-        for (int j = 0; j < row; j += 16) __builtin_prefetch(ahead + j);
-        __builtin_prefetch(ahead + row - 1);
-      }
-      if (first) {
-        std::copy_n(src + p2v[i] * row, row, a + i * row);
-      } else {
-        AddRow(a + i * row, src + p2v[i] * row, row);
-      }
+      std::copy_n(pf + p2v[i] * c0, c0, out.features.data() + i * c0);
     }
-  };
-  acc.resize(n * row);
-  {
-    const Impl::Pass pass = impl_->ForwardSceneVoxels(scene, &local, &out.frame);
-    const auto t0 = std::chrono::steady_clock::now();
-    add_pass(pass, 0, 0, /*first=*/true);
-    if (with_features) {
-      const torch::Tensor f = pass.h.features.to(torch::kCPU).contiguous();
-      const int64_t c0 = f.size(1);
-      const float* pf = f.data_ptr<float>();
-      const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();
-      out.features.resize(n * c0);
-      for (std::size_t i = 0; i < n; ++i) {
-        std::copy_n(pf + p2v[i] * c0, c0, out.features.data() + i * c0);
-      }
-    }
-    local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
   }
-  int passes = 1;
-  if (rotations > 1 || mirror) {
-    // Every further pass runs on the moved points (one buffer, colours shared).
+  if (passes == 1) {
+    stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), plain.point_to_voxel.data_ptr<int64_t>(),
+                                 n, &out);
+  } else {
+    // Every pass's voxel rows in the input frame, and for every further pass the voxel of
+    // each point, listed in the plain pass's voxel order (uninitialised buffers: every
+    // element is written).
+    std::vector<std::unique_ptr<float[]>> rows;
+    std::vector<std::unique_ptr<std::int32_t[]>> voxel_of;
+    auto add_rows = [&](const Impl::Pass& pass, bool mirrored, int k, int of_rotations) {
+      const stage1_heads::VoxelHeads h = Impl::HeadsView(pass);
+      rows.emplace_back(new float[static_cast<std::size_t>(h.voxels) * layout.stride]);
+      stage1_heads::InputFrameRows(h, layout, mirrored, k, of_rotations, rows.back().get());
+    };
+    add_rows(plain, false, 0, 1);
+    voxel_of.emplace_back();  // the plain pass: its voxel order itself
+    const int64_t* order = plain.voxel_points.data_ptr<int64_t>();
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     for (std::size_t i = 0; i < n; ++i) centre += scene.points[i].head<2>().cast<double>();
     centre /= static_cast<double>(n);
-    std::vector<Eigen::Vector3f> moved(n);
-    ScenePoints view = scene;
-    view.points = moved.data();
+    std::vector<Eigen::Vector3f> moved;
     for (int m = 0; m < (mirror ? 2 : 1); ++m) {
-      const double sign = m == 1 ? -1.0 : 1.0;  // x -> sign * x before the rotation
       for (int k = 0; k < rotations; ++k) {
         if (k == 0 && m == 0) continue;  // the plain pass above
-        const double theta = 2.0 * M_PI * k / rotations;
-        const double c = std::cos(theta), s = std::sin(theta);
-        for (std::size_t i = 0; i < n; ++i) {
-          const double x = sign * (scene.points[i].x() - centre.x());
-          const double y = scene.points[i].y() - centre.y();
-          moved[i] =
-              Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
-                              static_cast<float>(centre.y() + s * x + c * y), scene.points[i].z());
-        }
-        Stage1Timing t;
-        NetworkFrame unused;
-        const Impl::Pass pass = impl_->ForwardSceneVoxels(view, &t, &unused);
-        const auto t0 = std::chrono::steady_clock::now();
-        add_pass(pass, m, k, /*first=*/false);
-        ++passes;
-        t.heads_ms += Ms(t0, std::chrono::steady_clock::now());
-        local.voxelize_ms += t.voxelize_ms;
-        local.kernel_map_ms += t.kernel_map_ms;
-        local.unet_ms += t.unet_ms;
-        local.heads_ms += t.heads_ms;
+        const Impl::Pass pass =
+            impl_->ForwardMovedScene(scene, centre, m == 1 ? -1.0 : 1.0, 2.0 * M_PI * k / rotations,
+                                     out.frame.floor_z, &moved, &t);
+        add_network_time(t);
+        add_rows(pass, m == 1, k, rotations);
+        const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();
+        voxel_of.emplace_back(new std::int32_t[n]);
+        std::int32_t* of = voxel_of.back().get();
+        for (std::size_t j = 0; j < n; ++j) of[j] = static_cast<std::int32_t>(p2v[order[j]]);
       }
     }
-  }
-  // Means and the split into `out`.
-  const auto t0 = std::chrono::steady_clock::now();
-  const float inv = 1.0f / static_cast<float>(passes);
-  out.semantic_prob.resize(n * nc);
-  out.heading_prob.resize(n * kHeadingBins);
-  out.heading_residual.resize(n * kHeadingBins);
-  out.offsets.resize(n);
-  out.semantic.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const float* a = acc.data() + i * row;
-    float* sp = out.semantic_prob.data() + i * nc;
-    for (int j = 0; j < nc; ++j) sp[j] = a[off_sem + j] * inv;
-    float* hp = out.heading_prob.data() + i * kHeadingBins;
-    float* hr = out.heading_residual.data() + i * kHeadingBins;
-    for (int b = 0; b < kHeadingBins; ++b) {
-      hp[b] = a[off_hp + b] * inv;
-      hr[b] = a[off_hr + b] * inv;
+    std::vector<const float*> row_tables;
+    std::vector<const std::int32_t*> indexes;
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      row_tables.push_back(rows[k].get());
+      indexes.push_back(voxel_of[k].get());
     }
-    out.offsets[i] = Eigen::Vector3f(a[off_o], a[off_o + 1], a[off_o + 2]) * inv;
-    out.semantic[i] = static_cast<int>(std::max_element(sp, sp + nc) - sp);
+    stage1_heads::AverageInVoxelOrder(plain.voxel_offsets.data_ptr<int64_t>(),
+                                      plain.voxel_offsets.size(0) - 1, order, n, row_tables,
+                                      indexes, layout, &out);
   }
-  local.heads_ms += Ms(t0, std::chrono::steady_clock::now());
+  // heads = everything but the voxelisation, rulebooks and convolutions: network input, head
+  // MLPs, softmax, mapping back, averaging and copy-out.
+  local.heads_ms = Ms(t_start, std::chrono::steady_clock::now()) - local.voxelize_ms -
+                   local.kernel_map_ms - local.unet_ms;
   if (timing) *timing = local;
   return out;
 }

@@ -1,0 +1,306 @@
+// Stage-1 inference after the network: mapping back, TTA averaging, copy-out
+// (src/nn/stage1_heads.h). Only ATen's parallel_for, no tensors: a quick TU.
+#include "stage1_heads.h"
+
+#include <ATen/Parallel.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace dimr::nn::stage1_heads {
+namespace {
+
+// Four floats (SSE2 on x86-64, NEON on ARM): the row loops are written in whole vectors so
+// that they vectorise whatever the optimisation level (-O2 leaves a plain loop over a runtime
+// length scalar). Lane-wise IEEE adds and multiplies: the same results as the scalar loops.
+typedef float F4 __attribute__((vector_size(16)));
+
+inline F4 Load(const float* p) {
+  F4 v;
+  std::memcpy(&v, p, sizeof(v));
+  return v;
+}
+inline void Store(float* p, F4 v) { std::memcpy(p, &v, sizeof(v)); }
+
+// Prefetches the `bytes` from p (one hint per cache line).
+inline void PrefetchRange(const void* p, int bytes) {
+  const char* c = static_cast<const char*>(p);
+  for (int b = 0; b < bytes; b += 64) __builtin_prefetch(c + b);
+  __builtin_prefetch(c + bytes - 1);
+}
+
+typedef std::int32_t I4 __attribute__((vector_size(16)));
+
+inline F4 Splat(float v) { return F4{v, v, v, v}; }
+
+// exp(x) for the softmax arguments x = logit - row max <= 0: Cephes' expf (x = n ln 2 + r,
+// |r| <= ln 2 / 2, a degree-7 polynomial in r, times 2^n; relative error ~1e-7, i.e. within
+// an ulp or two of the correctly rounded value). Below -87.3 (e^x < 1.2e-38, where 2^n would
+// leave the normal range) it returns 0; NaN stays NaN.
+inline F4 ExpNonPositive(F4 x) {
+  const F4 lo = Splat(-87.3f);
+  const I4 tiny = x < lo;
+  const F4 xc = tiny ? lo : x;
+  // n = round(x / ln 2): adding and subtracting 1.5 * 2^23 rounds to the nearest integer.
+  const F4 magic = Splat(12582912.0f);
+  const F4 n = (xc * Splat(1.44269504088896341f) + magic) - magic;
+  // r = x - n ln 2, with ln 2 split in two so that n * C1 is exact.
+  F4 r = xc - n * Splat(0.693359375f);
+  r = r - n * Splat(-2.12194440e-4f);
+  F4 p = Splat(1.9875691500e-4f);
+  p = p * r + Splat(1.3981999507e-3f);
+  p = p * r + Splat(8.3334519073e-3f);
+  p = p * r + Splat(4.1665795894e-2f);
+  p = p * r + Splat(1.6666665459e-1f);
+  p = p * r + Splat(5.0000001201e-1f);
+  p = p * (r * r) + r + Splat(1.0f);
+  const I4 bits = (__builtin_convertvector(n, I4) + 127) << 23;
+  F4 two_n;
+  std::memcpy(&two_n, &bits, sizeof(two_n));
+  const F4 e = p * two_n;
+  return tiny ? Splat(0.0f) : e;
+}
+
+// Softmax of `dim` floats at x, in place: exp(x - max), then times 1 / sum, as ATen's lastdim
+// softmax (the sum in four lanes, then across them). A NaN logit makes the row NaN.
+inline void SoftmaxRow(float* x, int dim) {
+  float mx = x[0];
+  for (int c = 1; c < dim; ++c) mx = x[c] > mx ? x[c] : mx;
+  const F4 vmax = Splat(mx);
+  F4 sum = Splat(0.0f);
+  int c = 0;
+  for (; c + 4 <= dim; c += 4) {
+    const F4 e = ExpNonPositive(Load(x + c) - vmax);
+    Store(x + c, e);
+    sum += e;
+  }
+  if (c < dim) {
+    float tail[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+    std::memcpy(tail, x + c, sizeof(float) * (dim - c));
+    const F4 e = ExpNonPositive(Load(tail) - vmax);
+    Store(tail, e);
+    std::memcpy(x + c, tail, sizeof(float) * (dim - c));
+    sum += e;
+  }
+  const float inv = 1.0f / ((sum[0] + sum[1]) + (sum[2] + sum[3]));
+  for (int k = 0; k < dim; ++k) x[k] *= inv;
+}
+
+}  // namespace
+
+void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride) {
+  at::parallel_for(0, rows, 2048, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t v = begin; v < end; ++v) SoftmaxRow(x + v * stride, dim);
+  });
+}
+
+void SoftmaxInPlace(const VoxelHeads& h) {
+  SoftmaxRows(h.prob, h.voxels, h.classes, h.classes);
+  SoftmaxRows(h.heading, h.voxels, kHeadingBins, 2 * kHeadingBins);
+}
+
+RowLayout::RowLayout(int c)
+    : classes(c),
+      heading_prob(c),
+      heading_residual(c + kHeadingBins),
+      offset(c + 2 * kHeadingBins),
+      stride((c + 2 * kHeadingBins + 3 + 3) / 4 * 4) {}
+
+void InputFrameRows(const VoxelHeads& h, const RowLayout& L, bool mirror, int k, int rotations,
+                    float* rows) {
+  const int nc = h.classes;
+  // A heading h of the input is sign * h (+ pi if mirrored) + theta in the pass's scene: bin b
+  // here is bin (m * 6 + sign * b + shift) there, residual times sign.
+  const int m = mirror ? 1 : 0;
+  const double sign = mirror ? -1.0 : 1.0;
+  const double theta = 2.0 * M_PI * k / rotations;
+  const double c = std::cos(theta), s = std::sin(theta);
+  const int shift = kHeadingBins * k / rotations;
+  int to[kHeadingBins];
+  for (int b = 0; b < kHeadingBins; ++b) {
+    to[b] = ((m * kHeadingBins / 2 + (mirror ? -b : b) + shift) % kHeadingBins + kHeadingBins) %
+            kHeadingBins;
+  }
+  const float fsign = static_cast<float>(sign);
+  const int used = L.offset + 3;
+  for (std::int64_t v = 0; v < h.voxels; ++v) {
+    float* r = rows + v * L.stride;
+    const float* p = h.prob + v * nc;
+    for (int c = 0; c < nc; ++c) r[c] = p[c];
+    const float* bins = h.heading + v * 2 * kHeadingBins;
+    const float* res = h.heading + v * 2 * kHeadingBins + kHeadingBins;
+    for (int b = 0; b < kHeadingBins; ++b) {
+      r[L.heading_prob + b] = bins[to[b]];
+      r[L.heading_residual + b] = fsign * res[to[b]];
+    }
+    // Offsets rotated back by -theta, then mirrored.
+    const double ox = h.offset[3 * v], oy = h.offset[3 * v + 1];
+    r[L.offset] = static_cast<float>(sign * (c * ox + s * oy));
+    r[L.offset + 1] = static_cast<float>(-s * ox + c * oy);
+    r[L.offset + 2] = h.offset[3 * v + 2];
+    for (int c = used; c < L.stride; ++c) r[c] = 0.0f;  // padding
+  }
+}
+
+namespace {
+
+void Resize(std::size_t n, int nc, Stage1Output* out) {
+  out->semantic_prob.resize(n * nc);
+  out->heading_prob.resize(n * kHeadingBins);
+  out->heading_residual.resize(n * kHeadingBins);
+  out->offsets.resize(n);
+  out->semantic.resize(n);
+}
+
+}  // namespace
+
+void CopyOutOnePass(const VoxelHeads& h, const std::int64_t* p2v, std::size_t n,
+                    Stage1Output* out) {
+  const int nc = h.classes;
+  std::vector<int> argmax(h.voxels);
+  for (std::int64_t v = 0; v < h.voxels; ++v) {
+    const float* r = h.prob + v * nc;
+    argmax[v] = static_cast<int>(std::max_element(r, r + nc) - r);
+  }
+  Resize(n, nc, out);
+  float* sp = out->semantic_prob.data();
+  float* hp = out->heading_prob.data();
+  float* hr = out->heading_residual.data();
+  Eigen::Vector3f* op = out->offsets.data();
+  int* sem = out->semantic.data();
+  // Point order: the writes stream; a 100k-point room's ~25k voxel rows are a few MB read in
+  // another order than the points, so the rows 16 points ahead are prefetched.
+  at::parallel_for(
+      0, static_cast<std::int64_t>(n), 4096, [&](std::int64_t begin, std::int64_t end) {
+        constexpr std::int64_t kAhead = 16;
+        for (std::int64_t i = begin; i < end; ++i) {
+          if (i + kAhead < end) {
+            const std::int64_t w = p2v[i + kAhead];
+            PrefetchRange(h.prob + w * nc, nc * 4);
+            PrefetchRange(h.heading + w * 2 * kHeadingBins, kHeadingBins * 4);
+            PrefetchRange(h.heading + w * 2 * kHeadingBins + kHeadingBins, kHeadingBins * 4);
+          }
+          const std::int64_t v = p2v[i];
+          const float* p = h.prob + v * nc;
+          for (int c = 0; c < nc; ++c) sp[i * nc + c] = p[c];
+          const float* bins = h.heading + v * 2 * kHeadingBins;
+          const float* res = h.heading + v * 2 * kHeadingBins + kHeadingBins;
+          for (int b = 0; b < kHeadingBins; ++b) {
+            hp[i * kHeadingBins + b] = bins[b];
+            hr[i * kHeadingBins + b] = res[b];
+          }
+          op[i] = Eigen::Vector3f(h.offset[3 * v], h.offset[3 * v + 1], h.offset[3 * v + 2]);
+          sem[i] = argmax[v];
+        }
+      });
+}
+
+namespace {
+
+// The mean of one point's rows src[0 .. passes) into `mean` (vectors x 4 floats), summed in
+// pass order: the passes outer, the vectors inner, so that the adds of a row are independent
+// (one chain per vector, not one chain of passes x vectors). V > 0: the row length known at
+// compile time (the accumulators stay in registers); V = 0: `vectors` at run time.
+template <int V>
+inline void MeanOfRows(const float* const* src, int passes, int vectors, F4 inv, float* mean) {
+  if constexpr (V > 0) {
+    F4 acc[V];
+    for (int q = 0; q < V; ++q) acc[q] = Load(src[0] + 4 * q);
+    for (int k = 1; k < passes; ++k) {
+      const float* r = src[k];
+      for (int q = 0; q < V; ++q) acc[q] += Load(r + 4 * q);
+    }
+    for (int q = 0; q < V; ++q) Store(mean + 4 * q, acc[q] * inv);
+  } else {
+    for (int q = 0; q < vectors; ++q) Store(mean + 4 * q, Load(src[0] + 4 * q));
+    for (int k = 1; k < passes; ++k) {
+      const float* r = src[k];
+      for (int q = 0; q < vectors; ++q) Store(mean + 4 * q, Load(mean + 4 * q) + Load(r + 4 * q));
+    }
+    for (int q = 0; q < vectors; ++q) Store(mean + 4 * q, Load(mean + 4 * q) * inv);
+  }
+}
+
+template <int V>
+void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
+                  const std::int64_t* pts, const std::vector<const float*>& table,
+                  const std::vector<const std::int32_t*>& index, const RowLayout& L,
+                  Stage1Output* out) {
+  const int passes = static_cast<int>(table.size());
+  const int nc = L.classes, stride = L.stride, vectors = L.stride / 4;
+  const float inv_scalar = 1.0f / static_cast<float>(passes);
+  const F4 inv = {inv_scalar, inv_scalar, inv_scalar, inv_scalar};
+  float* sp = out->semantic_prob.data();
+  float* hp = out->heading_prob.data();
+  float* hr = out->heading_residual.data();
+  Eigen::Vector3f* op = out->offsets.data();
+  int* sem = out->semantic.data();
+  // Points ahead whose rows (every pass) and output rows are prefetched: the reads are local
+  // but not predictable for the hardware prefetcher (each pass's voxels are numbered along its
+  // own rotated axes), the writes are scattered.
+  constexpr std::int64_t ahead = 8;
+  const std::int64_t j_end = off[end];
+  std::vector<const float*> src(passes);
+  std::vector<float> buffer(stride);
+  float* mean = buffer.data();
+  for (std::int64_t v = begin; v < end; ++v) {
+    const std::int64_t ja = std::min(off[v] + ahead, j_end);
+    const std::int64_t jb = std::min(off[v + 1] + ahead, j_end);
+    for (std::int64_t j = ja; j < jb; ++j) {
+      for (int k = 1; k < passes; ++k) {
+        PrefetchRange(table[k] + static_cast<std::int64_t>(index[k][j]) * stride, stride * 4);
+      }
+      const std::int64_t i = pts[j];
+      __builtin_prefetch(sp + i * nc, 1);
+      __builtin_prefetch(sp + i * nc + nc - 1, 1);
+      __builtin_prefetch(hp + i * kHeadingBins, 1);
+      __builtin_prefetch(hp + i * kHeadingBins + kHeadingBins - 1, 1);
+      __builtin_prefetch(hr + i * kHeadingBins, 1);
+      __builtin_prefetch(hr + i * kHeadingBins + kHeadingBins - 1, 1);
+      __builtin_prefetch(op + i, 1);
+      __builtin_prefetch(sem + i, 1);
+    }
+    src[0] = table[0] + v * stride;
+    for (std::int64_t j = off[v]; j < off[v + 1]; ++j) {
+      for (int k = 1; k < passes; ++k) {
+        src[k] = table[k] + static_cast<std::int64_t>(index[k][j]) * stride;
+      }
+      MeanOfRows<V>(src.data(), passes, vectors, inv, mean);
+      const std::int64_t i = pts[j];
+      float* s = sp + i * nc;
+      int best = 0;
+      for (int c = 0; c < nc; ++c) {
+        s[c] = mean[c];
+        if (mean[c] > mean[best]) best = c;  // the first maximum, as std::max_element
+      }
+      sem[i] = best;
+      for (int b = 0; b < kHeadingBins; ++b) {
+        hp[i * kHeadingBins + b] = mean[L.heading_prob + b];
+        hr[i * kHeadingBins + b] = mean[L.heading_residual + b];
+      }
+      op[i] = Eigen::Vector3f(mean[L.offset], mean[L.offset + 1], mean[L.offset + 2]);
+    }
+  }
+}
+
+}  // namespace
+
+void AverageInVoxelOrder(const std::int64_t* off, std::int64_t m0, const std::int64_t* pts,
+                         std::size_t n, const std::vector<const float*>& table,
+                         const std::vector<const std::int32_t*>& index, const RowLayout& L,
+                         Stage1Output* out) {
+  Resize(n, L.classes, out);
+  // Voxel by voxel of the first pass: neighbouring points have neighbouring voxels in every
+  // pass, so the row reads stay local; each point's mean is written once (the only scatter
+  // into point order).
+  at::parallel_for(0, m0, 1024, [&](std::int64_t begin, std::int64_t end) {
+    if (L.stride == 52) {  // the 25 RFS classes
+      AverageRange<13>(begin, end, off, pts, table, index, L, out);
+    } else {
+      AverageRange<0>(begin, end, off, pts, table, index, L, out);
+    }
+  });
+}
+
+}  // namespace dimr::nn::stage1_heads

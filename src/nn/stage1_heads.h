@@ -1,0 +1,58 @@
+// Stage-1 inference after the network (private to the nn layer, LibTorch-free): the head
+// outputs of each test-time-augmentation pass mapped back to the input frame, averaged over the
+// passes and copied out per point (Stage1Model::PredictAugmented, src/nn/stage1_model.cpp).
+#pragma once
+
+#include <cstdint>
+#include <vector>
+
+#include "dimr/nn/stage1_model.h"
+
+namespace dimr::nn::stage1_heads {
+
+// One pass's head outputs on its M voxels (row-major, CPU): semantic logits [M, classes],
+// offsets [M, 3], heading [M, 24] (12 bin logits | 12 normalised residuals). SoftmaxInPlace
+// turns the semantic logits and the bin logits into probabilities where they are; the other
+// functions read probabilities.
+struct VoxelHeads {
+  float* prob = nullptr;
+  const float* offset = nullptr;
+  float* heading = nullptr;
+  std::int64_t voxels = 0;
+  int classes = 0;
+};
+
+// Softmax of each `dim`-float row x + v * stride (v < rows), in place.
+void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride);
+void SoftmaxInPlace(const VoxelHeads& h);
+
+// A pass's voxel rows in the input frame: [semantic prob (classes) | heading prob (12) |
+// heading residual (12) | offset (3)], `stride` floats apart (a multiple of 4: whole vectors).
+struct RowLayout {
+  int classes, heading_prob, heading_residual, offset, stride;
+  explicit RowLayout(int classes);
+};
+
+// The voxel rows of pass (mirror, k) of `rotations` (the pass saw the scene mirrored x -> -x
+// about the centroid if `mirror`, then rotated by 2 pi k / rotations about the vertical axis):
+// heading bins and residuals permuted / negated back, offsets rotated back then mirrored.
+// Writes h.voxels x layout.stride floats to `rows`.
+void InputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, int k, int rotations,
+                    float* rows);
+
+// One pass: every point gets its voxel's outputs (point_to_voxel [n]); sizes `out`'s arrays.
+void CopyOutOnePass(const VoxelHeads& h, const std::int64_t* point_to_voxel, std::size_t n,
+                    Stage1Output* out);
+
+// Several passes: the mean of every point's voxel rows over the passes, summed in pass order.
+// The points are walked in the first pass's voxel order (voxel_offsets [m0 + 1] CSR over
+// voxel_points [n]); rows[0] (InputFrameRows of the first pass) is indexed by that voxel,
+// rows[k] (k >= 1) by voxel_of[k][j] for the j-th point of that order (voxel_of[0] unused).
+// Sizes `out`'s arrays.
+void AverageInVoxelOrder(const std::int64_t* voxel_offsets, std::int64_t m0,
+                         const std::int64_t* voxel_points, std::size_t n,
+                         const std::vector<const float*>& rows,
+                         const std::vector<const std::int32_t*>& voxel_of, const RowLayout& layout,
+                         Stage1Output* out);
+
+}  // namespace dimr::nn::stage1_heads
