@@ -1,6 +1,9 @@
 #include "tools/bsp_options.h"
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <string>
+#include <vector>
 
 #include "dimr/geometry/error.h"
 #include "dimr/pipeline/bsp_decoder.h"
@@ -24,6 +27,39 @@ void AddBspDilationOption(CLI::App& app, BspDilation* dilation) {
   app.add_option("--distance-dilation", dilation->distance,
                  "move every BSP face outwards by this distance (normalised cube [-1, 1]^3); "
                  "default: the model card's recommended_distance_dilation, else 0");
+}
+
+nn::BspDataset LoadBspTrainingSets(const std::vector<std::string>& specs) {
+  if (specs.empty()) throw InvalidArgument("--train: no training dataset given");
+  nn::BspDataset all;
+  bool first = true;
+  for (const std::string& spec : specs) {
+    std::string path = spec;
+    int repeat = 1;
+    const std::size_t at = spec.rfind('@');
+    if (at != std::string::npos) {
+      const std::string count = spec.substr(at + 1);
+      const bool digits =
+          !count.empty() && count.size() <= 3 &&
+          std::all_of(count.begin(), count.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
+      if (!digits || std::stoi(count) < 1 || std::stoi(count) > 100) {
+        throw InvalidArgument("--train '" + spec +
+                              "': the repeat count after '@' must be an integer in 1..100");
+      }
+      repeat = std::stoi(count);
+      path = spec.substr(0, at);
+    }
+    const nn::BspDataset one = nn::BspDataset::Load(path);
+    if (first) all.resolution = one.resolution;
+    first = false;
+    if (one.resolution != all.resolution) {
+      throw InvalidArgument("--train '" + path + "' has resolution " +
+                            std::to_string(one.resolution) + ", the first dataset " +
+                            std::to_string(all.resolution));
+    }
+    for (int r = 0; r < repeat; ++r) all.Append(one);
+  }
+  return all;
 }
 
 }  // namespace dimr::tools

@@ -46,7 +46,17 @@ struct ShapeNetSelection {
   int per_class = 0;    // > 0: at most this many per class (in path order), for balancing
   int resolution = 32;  // encoder grid
   int jobs = 1;         // worker threads (0 = all cores); the result does not depend on it
+  // Also a left-right mirrored copy of every model (pipeline::MirrorLeftRight), id
+  // "<model_id>~mirror", right after the original (training augmentation).
+  bool mirror = false;
 };
+
+// Training data of `dimr train bsp`: the concatenation of one or more caches, each given as
+// `FILE` or `FILE@N` (its samples N times, N in 1..100: oversampling a small set, e.g. real models
+// among thousands of procedural ones). Throws dimr::InvalidArgument for an empty list, a bad
+// repeat count (`FILE@0`, `FILE@x2`) or caches of different resolutions, dimr::ParseError
+// naming the file for a missing or corrupt cache.
+nn::BspDataset LoadBspTrainingSets(const std::vector<std::string>& specs);
 
 // Split of a model id under ShapeNetSelection::split's rule ("train", "val" or "test").
 std::string ShapeNetSplitOf(const std::string& model_id);

@@ -16,6 +16,7 @@
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/ply_io.h"
 #include "dimr/nn/bsp_model.h"
+#include "dimr/pipeline/bsp_data.h"
 #include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/shape_pool.h"
@@ -34,7 +35,8 @@ pipeline::BspDecoder LoadDecoder(const std::string& model_path, const BspDilatio
 
 // ---------------------------------------------------------------- train
 struct TrainArgs {
-  std::string train, val, out, config = "cpu", epochs = "60,30,0", device = "cpu";
+  std::vector<std::string> train;  // FILE or FILE@N (repeated N times), concatenated
+  std::string val, out, config = "cpu", epochs = "60,30,0", device = "cpu";
   std::string init;  // start from these weights (fine-tuning); their configuration is used
   bool config_given = false;
   int batch = 16, points = 1024, threads = 0, checkpoint_every = 5;
@@ -109,7 +111,9 @@ void WriteModelCard(const std::string& dir, const nn::BspModel& model, const Tra
   y << "training:\n";
   y << "  command: \"" << command << "\"\n";
   y << "  seed: " << a.seed << "\n";
-  y << "  train_data: \"" << a.train << "\"\n";
+  y << "  train_data: \"";
+  for (std::size_t i = 0; i < a.train.size(); ++i) y << (i ? " + " : "") << a.train[i];
+  y << "\"\n";
   y << "  val_data: \"" << a.val << "\"\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   if (a.freeze_decoder) y << "  frozen: decoder and convex/union weights (encoder trained)\n";
@@ -179,7 +183,7 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
     if (a.val.empty()) throw InvalidArgument("--keep-best needs --val (the selection data)");
     opt.best_path = a.out + "/best.pt";
   }
-  const nn::BspDataset train = nn::BspDataset::Load(a.train);
+  const nn::BspDataset train = LoadBspTrainingSets(a.train);
   const nn::BspDataset val = a.val.empty() ? nn::BspDataset() : nn::BspDataset::Load(a.val);
   nn::BspModel model = a.init.empty() ? nn::BspModel(config, a.seed) : nn::BspModel::Load(a.init);
   {
@@ -269,7 +273,7 @@ void RunEval(const EvalArgs& a) {
               decoder.mesh_options().distance_dilation);
   const int R = data.resolution;
   const Eigen::MatrixX3f centers = pipeline::BspGridCenters(R);
-  std::vector<double> iou_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
+  std::vector<double> iou_sum(8, 0.0), cell_sum(8, 0.0), faces_sum(8, 0.0), convex_sum(8, 0.0);
   std::vector<int> n(8, 0);
   if (!a.mesh_dir.empty()) std::filesystem::create_directories(a.mesh_dir);
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
@@ -282,6 +286,7 @@ void RunEval(const EvalArgs& a) {
     const pipeline::BspMeshResult mesh = decoder.MeshFromPlanes(planes);
     const int c = sample.cad_class;
     iou_sum[c] += pipeline::OccupancyIoU(occ, target);
+    cell_sum[c] += pipeline::OccupancyIoU(pipeline::BspCellOccupancy(mesh, R), sample.grid);
     faces_sum[c] += static_cast<double>(mesh.mesh.faces.size());
     convex_sum[c] += static_cast<double>(mesh.kept_convexes.size());
     ++n[c];
@@ -293,17 +298,23 @@ void RunEval(const EvalArgs& a) {
     std::fprintf(stderr, "\reval: %zu/%zu", s + 1, data.samples.size());
   }
   std::fprintf(stderr, "\n");
-  std::printf("| class | shapes | IoU@32^3 | kept convexes | triangles |\n|---|---|---|---|---|\n");
-  double total = 0;
+  // IoU@32^3 = cell centres (decoded occupancy at the centres vs iou_grid); cell IoU = the
+  // occupied cells of the decoded mesh vs of the original (pipeline::BspCellOccupancy).
+  std::printf(
+      "| class | shapes | IoU@32^3 (centres) | cell IoU@32^3 | kept convexes | triangles "
+      "|\n|---|---|---|---|---|---|\n");
+  double total = 0, total_cell = 0;
   int count = 0;
   for (int c = 0; c < 8; ++c) {
     if (!n[c]) continue;
-    std::printf("| %s | %d | %.4f | %.1f | %.0f |\n", labels::CadClassNames()[c], n[c],
-                iou_sum[c] / n[c], convex_sum[c] / n[c], faces_sum[c] / n[c]);
+    std::printf("| %s | %d | %.4f | %.4f | %.1f | %.0f |\n", labels::CadClassNames()[c], n[c],
+                iou_sum[c] / n[c], cell_sum[c] / n[c], convex_sum[c] / n[c], faces_sum[c] / n[c]);
     total += iou_sum[c];
+    total_cell += cell_sum[c];
     count += n[c];
   }
-  std::printf("| **all** | %d | **%.4f** | | |\n", count, count ? total / count : 0.0);
+  std::printf("| **all** | %d | **%.4f** | **%.4f** | | |\n", count, count ? total / count : 0.0,
+              count ? total_cell / count : 0.0);
 }
 
 // ---------------------------------------------------------------- encode-pool
@@ -440,7 +451,10 @@ void RunBench(const BenchArgs& a) {
 // ---------------------------------------------------------------- registration
 void SetupTrain(CLI::App& app) {
   auto a = std::make_shared<TrainArgs>();
-  app.add_option("--train", a->train, "training dataset (dimr bsp prepare)")->required();
+  app.add_option("--train", a->train,
+                 "training dataset (dimr bsp prepare); several are concatenated, FILE@N "
+                 "repeats one N times (oversampling)")
+      ->required();
   app.add_option("--val", a->val, "validation dataset");
   app.add_option("--out", a->out, "output model directory")->required();
   auto* config_opt = app.add_option("--config", a->config, "cpu | reference | 'key=value ...'");

@@ -71,7 +71,8 @@ nn::BspDataset ShapeNetBspDataset(const std::string& dir, const ShapeNetSelectio
   }
   nn::BspDataset data;
   data.resolution = sel.resolution;
-  data.samples.resize(items.size());
+  const std::size_t copies = sel.mirror ? 2 : 1;
+  data.samples.resize(items.size() * copies);
   pipeline::BspSampleOptions opt;
   opt.resolution = sel.resolution;
   eval::Progress progress("bsp prepare (shapenet)", items.size(), true);
@@ -81,8 +82,14 @@ nn::BspDataset ShapeNetBspDataset(const std::string& dir, const ShapeNetSelectio
         const Item& it = items[k];
         const data::CadModel m = data::ReadShapeNetModel(it.path, it.synset);
         try {
-          data.samples[k] = pipeline::MakeBspSample(m.mesh, it.cad_class, it.model_id, opt,
-                                                    Fnv1a(it.model_id) ^ 0x9e3779b97f4a7c15ull);
+          data.samples[k * copies] = pipeline::MakeBspSample(
+              m.mesh, it.cad_class, it.model_id, opt, Fnv1a(it.model_id) ^ 0x9e3779b97f4a7c15ull);
+          if (sel.mirror) {
+            const std::string id = it.model_id + "~mirror";
+            data.samples[k * copies + 1] =
+                pipeline::MakeBspSample(pipeline::MirrorLeftRight(m.mesh), it.cad_class, id, opt,
+                                        Fnv1a(id) ^ 0x9e3779b97f4a7c15ull);
+          }
         } catch (const std::exception& e) {
           throw ParseError(it.path, e.what());
         }
@@ -123,6 +130,7 @@ struct PrepareArgs {
   std::string classes = "all";
   int resolution = 32;
   int jobs = 1;
+  bool mirror = false;
 };
 
 // Model seeds: disjoint streams per (seed, class) so train/val/test never share models.
@@ -139,6 +147,7 @@ void RunPrepareShapeNet(const PrepareArgs& a) {
   sel.per_class = a.per_class;
   sel.resolution = a.resolution;
   sel.jobs = a.jobs;
+  sel.mirror = a.mirror;
   const nn::BspDataset data = ShapeNetBspDataset(a.shapenet, sel);
   data.Save(a.out);
   std::vector<int> count(data::kNumCadClasses, 0);
@@ -158,6 +167,7 @@ void RunPrepareShapeNet(const PrepareArgs& a) {
 void RunPrepare(const PrepareArgs& a) {
   if (!a.shapenet.empty()) return RunPrepareShapeNet(a);
   if (a.split != "all") throw InvalidArgument("--split applies to --shapenet trees only");
+  if (a.mirror) throw InvalidArgument("--mirror applies to --shapenet trees only");
   const int per_class = a.per_class > 0 ? a.per_class : 100;
   nn::BspDataset data;
   data.resolution = a.resolution;
@@ -215,6 +225,9 @@ void SetupPrepare(CLI::App& app) {
   app.add_option("--jobs", a->jobs,
                  "worker threads (0 = all cores); the output does not depend on it")
       ->check(CLI::Range(0, 1024));
+  app.add_flag("--mirror", a->mirror,
+               "with --shapenet: also a left-right mirrored copy of every model (id "
+               "'<id>~mirror'; augmentation for small real sets)");
   app.callback([a]() { RunPrepare(*a); });
 }
 

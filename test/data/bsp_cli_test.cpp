@@ -291,6 +291,59 @@ TEST(BspCli, TrainDistilsPoolCodes) {
   EXPECT_NE(out.find("--latent-targets"), std::string::npos) << out;
   fs::remove_all(dir);
 }
+// Real-furniture helpers: `bsp prepare --mirror` adds a mirrored copy of every tree model,
+// `train bsp --train A --train B@N` concatenates with B repeated N times (bad counts refused,
+// the card names the sets), and `real bsp` reports both IoUs of every model with its cell counts.
+TEST(BspCli, MirrorOversampleAndCellIoU) {
+  if (RunCli("train bsp --help").first != 0) GTEST_SKIP() << "dimr built without the nn layer";
+  const fs::path dir = FreshTempDir("bsp_oversample");
+  const std::string d = dir.string();
+  const std::string model = (fs::path(DIMR_SOURCE_DIR) / "models/bsp/bsp.pt").string();
+  auto [rc, out] = RunCli("cad generate --class all --count 1 --seed 41 --out " + d + "/tree");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = RunCli("bsp prepare --shapenet " + d + "/tree --classes chair,sofa --out " +
+                             d + "/plain.bin");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("wrote 2 samples"), std::string::npos) << out;
+  std::tie(rc, out) = RunCli("bsp prepare --shapenet " + d +
+                             "/tree --classes chair,sofa --mirror --out " + d + "/mirror.bin");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("wrote 4 samples"), std::string::npos) << out;
+  EXPECT_NE(ReadFileText(dir / "mirror.bin").find("~mirror"), std::string::npos);
+  std::tie(rc, out) = RunCli("bsp prepare --per-class 1 --mirror --out " + d + "/x.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("--mirror"), std::string::npos) << out;
+
+  const std::string train = "train bsp --epochs 0,1,0 --batch 4 --points 256 --threads 1 --fp32 " +
+                            std::string("--init ") + model + " --train " + d + "/plain.bin";
+  std::tie(rc, out) = RunCli(train + " --train " + d + "/mirror.bin@3 --out " + d + "/run");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("14 training shapes"), std::string::npos) << out;  // 2 + 3 x 4
+  EXPECT_NE(ReadFileText(dir / "run/model.yaml").find("plain.bin + " + d + "/mirror.bin@3"),
+            std::string::npos);
+  for (const char* bad : {"@0", "@x", "@101", "@"}) {
+    std::tie(rc, out) =
+        RunCli(train + " --train " + d + "/mirror.bin" + bad + " --out " + d + "/bad");
+    EXPECT_NE(rc, 0) << bad;
+    EXPECT_NE(out.find("repeat count"), std::string::npos) << bad << ": " << out;
+  }
+
+  // `real bsp` on procedural models: both IoUs per model, cell IoU at the procedural level.
+  std::tie(rc, out) = RunCli("real bsp --model " + model + " --shapenet " + d + "/tree");
+  ASSERT_EQ(rc, 0) << out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(
+      out, m, std::regex(R"(\| \*\*all\*\* \| 8 \| \*\*([0-9.]+)\*\* \| \*\*([0-9.]+)\*\* \|)")))
+      << out;
+  EXPECT_GT(std::stod(m[1]), 0.6) << out;
+  EXPECT_GT(std::stod(m[2]), 0.6) << out;
+  EXPECT_TRUE(std::regex_search(
+      out,
+      std::regex(
+          R"(\| chair \| [0-9a-f]{8} \| [0-9.]+ \| [0-9.]+ \| [0-9.]+ \| [0-9]+ / [0-9]+ \|)")))
+      << out;
+  fs::remove_all(dir);
+}
 #endif
 
 }  // namespace
