@@ -407,19 +407,17 @@ double FloorBySortedSweep(std::vector<float> z, std::size_t need, double z0, dou
   return floor_z;
 }
 
-}  // namespace
-
-NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
-  if (points.empty()) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
+// EstimateNetworkFrame on n points (MakeStage1NetworkInput's view without a copy).
+NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
+  if (n == 0) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
   Eigen::Vector3f lo = points[0], hi = points[0];
-  for (std::size_t i = 0; i < points.size(); ++i) {
+  for (std::size_t i = 0; i < n; ++i) {
     if (!Finite(points[i])) {
       throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
     }
     lo = lo.cwiseMin(points[i]);
     hi = hi.cwiseMax(points[i]);
   }
-  const std::size_t n = points.size();
   const std::size_t need = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(0.02 * n)));
   constexpr double kBin = 0.02;
   const double z0 = lo.z();
@@ -433,8 +431,9 @@ NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
   constexpr long long kBins = 1 << 16;  // 1.3 km of 2 cm bins
   std::vector<std::uint32_t> count(kBins, 0);
   bool beyond = false;
-  for (const auto& p : points) {
-    const double b = std::floor((p.z() - z0) / kBin);
+  // (z - z0) / kBin >= 0, so its floor is its truncation (no libm floor call per point).
+  for (std::size_t i = 0; i < n; ++i) {
+    const double b = (points[i].z() - z0) / kBin;
     if (b < kBins) {
       ++count[static_cast<std::size_t>(b)];
     } else {
@@ -453,9 +452,9 @@ NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
     const std::size_t rank = (count[found] + count[found + 1]) / 2;
     std::vector<float> z;
     z.reserve(count[found] + count[found + 1]);
-    for (const auto& p : points) {
-      const double b = std::floor((p.z() - z0) / kBin);
-      if (b == found || b == found + 1) z.push_back(p.z());
+    for (std::size_t i = 0; i < n; ++i) {
+      const double b = (points[i].z() - z0) / kBin;  // floor(b) is found or found + 1
+      if (b >= found && b < found + 2) z.push_back(points[i].z());
     }
     std::nth_element(z.begin(), z.begin() + rank, z.end());
     floor_z = z[rank];
@@ -476,6 +475,12 @@ NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
                                  static_cast<float>(floor_z));
   frame.floor_z = frame.origin.z();
   return frame;
+}
+
+}  // namespace
+
+NetworkFrame EstimateNetworkFrame(const std::vector<Eigen::Vector3f>& points) {
+  return EstimateFrame(points.data(), points.size());
 }
 
 // ---------------------------------------------------------------- configs
@@ -908,7 +913,7 @@ Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
     }
   }
   Stage1NetworkInput r;
-  r.frame = EstimateNetworkFrame(std::vector<Eigen::Vector3f>(scene.points, scene.points + n));
+  r.frame = EstimateFrame(scene.points, n);
   const int C = input.feature_channels();
   r.feature_channels = C;
   r.features.resize(n * C);
@@ -940,8 +945,8 @@ Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
     const Eigen::Vector3f q = (scene.points[i] - r.frame.origin) * scale;
     r.voxel[4 * i] = 0;
     for (int c = 0; c < 3; ++c) {
-      r.voxel[4 * i + 1 + c] =
-          static_cast<std::int32_t>(std::floor(static_cast<double>(q[c]) - qmin[c]));
+      // floor of a difference >= 0 (q >= qmin): its truncation, without a libm call.
+      r.voxel[4 * i + 1 + c] = static_cast<std::int32_t>(static_cast<double>(q[c]) - qmin[c]);
     }
     if (input.use_rgb) {
       for (int c = 0; c < 3; ++c) r.features[C * i + 3 + c] = scene.colors[i][c] - 0.5f;

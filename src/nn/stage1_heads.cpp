@@ -62,42 +62,62 @@ inline F4 ExpNonPositive(F4 x) {
   return tiny ? Splat(0.0f) : e;
 }
 
+inline F4 Max(F4 a, F4 b) { return a > b ? a : b; }
+
 // Softmax of `dim` floats at x, in place: exp(x - max), then times 1 / sum, as ATen's lastdim
-// softmax (the sum in four lanes, then across them). A NaN logit makes the row NaN.
-inline void SoftmaxRow(float* x, int dim) {
-  float mx = x[0];
-  for (int c = 1; c < dim; ++c) mx = x[c] > mx ? x[c] : mx;
-  const F4 vmax = Splat(mx);
+// softmax (the sum in four lanes, then across them); whole vectors, the last partial one
+// padded with -inf. A NaN logit makes the row NaN. Returns the first index of the largest
+// probability (std::max_element's answer on the written row; 0 for a NaN row).
+inline int SoftmaxRow(float* x, int dim) {
+  const int full = dim / 4 * 4;
+  float tail[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
+  std::memcpy(tail, x + full, sizeof(float) * (dim - full));
+  F4 vmax = Load(tail);
+  for (int c = 0; c < full; c += 4) vmax = Max(vmax, Load(x + c));
+  float mx = vmax[0];
+  for (int q = 1; q < 4; ++q) mx = vmax[q] > mx ? vmax[q] : mx;
+  // (A NaN logit gives exp(NaN - mx) = NaN, so the sum and the whole row are NaN.)
+  const F4 shift = Splat(mx);
   F4 sum = Splat(0.0f);
-  int c = 0;
-  for (; c + 4 <= dim; c += 4) {
-    const F4 e = ExpNonPositive(Load(x + c) - vmax);
+  for (int c = 0; c < full; c += 4) {
+    const F4 e = ExpNonPositive(Load(x + c) - shift);
     Store(x + c, e);
     sum += e;
   }
-  if (c < dim) {
-    float tail[4] = {-INFINITY, -INFINITY, -INFINITY, -INFINITY};
-    std::memcpy(tail, x + c, sizeof(float) * (dim - c));
-    const F4 e = ExpNonPositive(Load(tail) - vmax);
-    Store(tail, e);
-    std::memcpy(x + c, tail, sizeof(float) * (dim - c));
-    sum += e;
+  F4 te = ExpNonPositive(Load(tail) - shift);
+  sum += te;
+  const F4 inv = Splat(1.0f / ((sum[0] + sum[1]) + (sum[2] + sum[3])));
+  F4 pmax = Splat(0.0f);
+  for (int c = 0; c < full; c += 4) {
+    const F4 p = Load(x + c) * inv;
+    Store(x + c, p);
+    pmax = Max(pmax, p);
   }
-  const float inv = 1.0f / ((sum[0] + sum[1]) + (sum[2] + sum[3]));
-  for (int k = 0; k < dim; ++k) x[k] *= inv;
+  te *= inv;
+  std::memcpy(x + full, &te, sizeof(float) * (dim - full));
+  pmax = Max(pmax, te);
+  float best = pmax[0];
+  for (int q = 1; q < 4; ++q) best = pmax[q] > best ? pmax[q] : best;
+  for (int c = 0; c < dim; ++c) {
+    if (x[c] == best) return c;
+  }
+  return 0;
 }
 
 }  // namespace
 
-void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride) {
+void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax) {
   at::parallel_for(0, rows, 2048, [&](std::int64_t begin, std::int64_t end) {
-    for (std::int64_t v = begin; v < end; ++v) SoftmaxRow(x + v * stride, dim);
+    for (std::int64_t v = begin; v < end; ++v) {
+      const int best = SoftmaxRow(x + v * stride, dim);
+      if (argmax != nullptr) argmax[v] = best;
+    }
   });
 }
 
-void SoftmaxInPlace(const VoxelHeads& h) {
-  SoftmaxRows(h.prob, h.voxels, h.classes, h.classes);
-  SoftmaxRows(h.heading, h.voxels, kHeadingBins, 2 * kHeadingBins);
+void SoftmaxInPlace(const VoxelHeads& h, int* argmax) {
+  SoftmaxRows(h.prob, h.voxels, h.classes, h.classes, argmax);
+  SoftmaxRows(h.heading, h.voxels, kHeadingBins, 2 * kHeadingBins, nullptr);
 }
 
 RowLayout::RowLayout(int c)
@@ -155,14 +175,9 @@ void Resize(std::size_t n, int nc, Stage1Output* out) {
 
 }  // namespace
 
-void CopyOutOnePass(const VoxelHeads& h, const std::int64_t* p2v, std::size_t n,
+void CopyOutOnePass(const VoxelHeads& h, const int* argmax, const std::int64_t* p2v, std::size_t n,
                     Stage1Output* out) {
   const int nc = h.classes;
-  std::vector<int> argmax(h.voxels);
-  for (std::int64_t v = 0; v < h.voxels; ++v) {
-    const float* r = h.prob + v * nc;
-    argmax[v] = static_cast<int>(std::max_element(r, r + nc) - r);
-  }
   Resize(n, nc, out);
   float* sp = out->semantic_prob.data();
   float* hp = out->heading_prob.data();
@@ -180,6 +195,8 @@ void CopyOutOnePass(const VoxelHeads& h, const std::int64_t* p2v, std::size_t n,
             PrefetchRange(h.prob + w * nc, nc * 4);
             PrefetchRange(h.heading + w * 2 * kHeadingBins, kHeadingBins * 4);
             PrefetchRange(h.heading + w * 2 * kHeadingBins + kHeadingBins, kHeadingBins * 4);
+            PrefetchRange(h.offset + 3 * w, 12);
+            __builtin_prefetch(argmax + w);
           }
           const std::int64_t v = p2v[i];
           const float* p = h.prob + v * nc;

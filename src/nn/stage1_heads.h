@@ -22,9 +22,11 @@ struct VoxelHeads {
   int classes = 0;
 };
 
-// Softmax of each `dim`-float row x + v * stride (v < rows), in place.
-void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride);
-void SoftmaxInPlace(const VoxelHeads& h);
+// Softmax of each `dim`-float row x + v * stride (v < rows), in place; argmax (if given, one
+// per row) gets the first index of the row's largest probability.
+void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax = nullptr);
+// The semantic rows (argmax: the class of each voxel, if given) and the bin logits.
+void SoftmaxInPlace(const VoxelHeads& h, int* argmax = nullptr);
 
 // A pass's voxel rows in the input frame: [semantic prob (classes) | heading prob (12) |
 // heading residual (12) | offset (3)], `stride` floats apart (a multiple of 4: whole vectors).
@@ -40,9 +42,10 @@ struct RowLayout {
 void InputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, int k, int rotations,
                     float* rows);
 
-// One pass: every point gets its voxel's outputs (point_to_voxel [n]); sizes `out`'s arrays.
-void CopyOutOnePass(const VoxelHeads& h, const std::int64_t* point_to_voxel, std::size_t n,
-                    Stage1Output* out);
+// One pass: every point gets its voxel's outputs (argmax: each voxel's class, from
+// SoftmaxInPlace; point_to_voxel [n]); sizes `out`'s arrays.
+void CopyOutOnePass(const VoxelHeads& h, const int* argmax, const std::int64_t* point_to_voxel,
+                    std::size_t n, Stage1Output* out);
 
 // Several passes: the mean of every point's voxel rows over the passes, summed in pass order.
 // The points are walked in the first pass's voxel order (voxel_offsets [m0 + 1] CSR over

@@ -313,6 +313,7 @@ struct Stage1Model::Impl {
     // bin softmax (written over the logits).
     HeadOutput h;
     torch::Tensor point_to_voxel, voxel_offsets, voxel_points;  // voxel heads: the map, int64
+    std::vector<int> argmax;                                    // voxel heads: class per voxel
   };
   Pass Run(const torch::Tensor& voxel, const torch::Tensor& features, int64_t batch_size,
            bool voxel_heads, Stage1Timing* timing) {
@@ -336,7 +337,8 @@ struct Stage1Model::Impl {
       pass.h.heading = cpu(pass.h.heading);
       // The semantic and heading-bin softmax in place (stage1_heads: one pass over the rows,
       // no slice copies; ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
-      stage1_heads::SoftmaxInPlace(HeadsView(pass));
+      pass.argmax.resize(static_cast<std::size_t>(pass.h.semantic.size(0)));
+      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data());
       pass.point_to_voxel = cpu(v.map.point_to_voxel.to(torch::kInt64));
       pass.voxel_offsets = cpu(v.map.voxel_offsets.to(torch::kInt64));
       pass.voxel_points = cpu(v.map.voxel_points.to(torch::kInt64));
@@ -594,8 +596,8 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     }
   }
   if (passes == 1) {
-    stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), plain.point_to_voxel.data_ptr<int64_t>(),
-                                 n, &out);
+    stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), plain.argmax.data(),
+                                 plain.point_to_voxel.data_ptr<int64_t>(), n, &out);
   } else {
     // Every pass's voxel rows in the input frame, and for every further pass the voxel of
     // each point, listed in the plain pass's voxel order (uninitialised buffers: every

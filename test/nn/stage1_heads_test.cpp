@@ -182,7 +182,8 @@ TEST(Stage1Heads, SoftmaxMatchesDoublePrecision) {
       x[3 * stride + c] = c == dim - 1 ? 50.0f : -60.0f + c;
     }
     const std::vector<float> in = x;
-    stage1_heads::SoftmaxRows(x.data(), rows, dim, stride);
+    std::vector<int> argmax(rows, -1);
+    stage1_heads::SoftmaxRows(x.data(), rows, dim, stride, argmax.data());
     for (int v = 0; v < rows; ++v) {
       // The reference of the float formula: exp of the float difference x - max (its rounding
       // is the formula's, ~5e-6 relative at |x| ~ 40), in double from there on.
@@ -203,6 +204,8 @@ TEST(Stage1Heads, SoftmaxMatchesDoublePrecision) {
         }
       }
       ASSERT_NEAR(total, 1.0, 1e-6);
+      const float* row = x.data() + v * stride;
+      ASSERT_EQ(argmax[v], std::max_element(row, row + dim) - row) << "dim " << dim << " row " << v;
       for (int c = dim; c < stride; ++c) ASSERT_EQ(x[v * stride + c], in[v * stride + c]);
     }
     EXPECT_FLOAT_EQ(x[0], 1.0f / dim);
