@@ -450,14 +450,44 @@ NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
   double floor_z = 0;
   if (found >= 0) {
     const std::size_t rank = (count[found] + count[found + 1]) / 2;
-    std::vector<float> z;
-    z.reserve(count[found] + count[found + 1]);
+    // Branch-free compaction of the points of bins found and found + 1 (a few tens of % of a
+    // room's points, in no predictable order: the push_back loop mispredicted ~0.5-1 ms per
+    // 100k points): every z is written, the index advances only for those kept; one spare slot
+    // takes the writes past the last kept one. The kept z are then split into sub-bins,
+    // sub = min(floor(float(b - found) * 512), 1023): b - found is in [0, 2), every step is a
+    // monotone rounding, so sub is a non-decreasing function of z and the element of rank
+    // `rank` is the element of rank (rank - points in lower sub-bins) of its sub-bin:
+    // nth_element on a few hundred values instead of tens of thousands (~0.5 ms per 100k).
+    constexpr int kSub = 1024;
+    const std::size_t kept = count[found] + count[found + 1];
+    std::vector<float> z(kept + 1), d(kept + 1);
+    float* zp = z.data();
+    float* dp = d.data();
+    std::size_t m = 0;
+    const double lo_b = static_cast<double>(found), hi_b = static_cast<double>(found + 2);
     for (std::size_t i = 0; i < n; ++i) {
       const double b = (points[i].z() - z0) / kBin;  // floor(b) is found or found + 1
-      if (b >= found && b < found + 2) z.push_back(points[i].z());
+      zp[m] = points[i].z();
+      dp[m] = static_cast<float>(b - lo_b);
+      m += static_cast<std::size_t>((b >= lo_b) & (b < hi_b));
+      if (m > kept) m = kept;  // (cannot happen: the histogram counted these bins)
     }
-    std::nth_element(z.begin(), z.begin() + rank, z.end());
-    floor_z = z[rank];
+    const auto sub_of = [](float x) {  // x in [0, 2]
+      return std::min(static_cast<int>(x * (kSub / 2)), kSub - 1);
+    };
+    std::vector<std::uint32_t> sub_count(kSub, 0);
+    for (std::size_t i = 0; i < m; ++i) ++sub_count[sub_of(dp[i])];
+    int j = 0;
+    std::size_t below = 0;
+    while (j < kSub - 1 && below + sub_count[j] <= rank) below += sub_count[j++];
+    std::size_t q = 0;
+    for (std::size_t i = 0; i < m; ++i) {
+      zp[q] = zp[i];  // q <= i: in place
+      q += static_cast<std::size_t>(sub_of(dp[i]) == j);
+    }
+    const std::size_t r = rank - below;  // < q: sub-bin j holds the element of rank `rank`
+    std::nth_element(z.begin(), z.begin() + r, z.begin() + q);
+    floor_z = z[r];
   } else if (!beyond && count[kBins - 1] < need) {
     // No bin qualifies: the 1st percentile.
     std::vector<float> z(n);

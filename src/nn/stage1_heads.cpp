@@ -116,8 +116,15 @@ void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int*
 }
 
 void SoftmaxInPlace(const VoxelHeads& h, int* argmax) {
-  SoftmaxRows(h.prob, h.voxels, h.classes, h.classes, argmax);
-  SoftmaxRows(h.heading, h.voxels, kHeadingBins, 2 * kHeadingBins, nullptr);
+  // Both rows of a voxel in one loop (the same per-row arithmetic as SoftmaxRows): one sweep
+  // over the voxels, and the two rows' exp chains are independent work for the core to overlap.
+  at::parallel_for(0, h.voxels, 2048, [&](std::int64_t begin, std::int64_t end) {
+    for (std::int64_t v = begin; v < end; ++v) {
+      const int best = SoftmaxRow(h.prob + v * h.classes, h.classes);
+      if (argmax != nullptr) argmax[v] = best;
+      SoftmaxRow(h.heading + v * 2 * kHeadingBins, kHeadingBins);
+    }
+  });
 }
 
 RowLayout::RowLayout(int c)
