@@ -31,6 +31,23 @@ struct CellKey {
   }
 };
 
+// Calls f(e) for every index e of the sorted `keys` among the 27 cells around keys[c] (itself
+// included), in key order. For each (dx, dy) the run of keys (x + dx, y + dy, z - 1 .. z + 1)
+// only moves forward with c, so nine monotone cursors replace 27 hash probes per cell: call it
+// for c = 0, 1, 2, ... with the same zero-initialised `cursor`.
+template <class F>
+void ForEachNearCell(const std::vector<CellKey>& keys, std::size_t c, std::size_t (&cursor)[9],
+                     F&& f) {
+  const CellKey key = keys[c];
+  for (int d = 0; d < 9; ++d) {
+    const CellKey from{key.x + d / 3 - 1, key.y + d % 3 - 1, key.z - 1};
+    const CellKey to{from.x, from.y, key.z + 1};
+    std::size_t& q = cursor[d];
+    while (q < keys.size() && keys[q] < from) ++q;
+    for (std::size_t e = q; e < keys.size() && !(to < keys[e]); ++e) f(e);
+  }
+}
+
 // ---------------------------------------------------------------- distance-test kernels
 // The ball query's float tests, ((x_j - x_k)^2 + (y_j - y_k)^2) + (z_j - z_k)^2 < r^2, eight
 // at a time with AVX2 where the CPU has it (runtime dispatch; compiled without FMA, so the
@@ -256,9 +273,7 @@ class BallQuery {
     uy_ = ys_;
     uz_ = zs_;
     // The occupied cells among each cell's 27 (itself included) and the number of labelled
-    // points in them (if it is <= cap the cap cannot bind). The keys are sorted, so for each
-    // (dx, dy) the run of keys (x + dx, y + dy, z - 1 .. z + 1) moves forward with the cell:
-    // nine monotone cursors instead of 27 hash probes per cell.
+    // points in them (if it is <= cap the cap cannot bind).
     const std::size_t num_cells = cell_keys.size();
     near_begin_.reserve(num_cells + 1);
     near_begin_.push_back(0);
@@ -267,16 +282,10 @@ class BallQuery {
     for (std::size_t c = 0; c < num_cells; ++c) {
       const CellKey key = cell_keys[c];
       std::size_t total = 0;
-      for (int d = 0; d < 9; ++d) {
-        const CellKey from{key.x + d / 3 - 1, key.y + d % 3 - 1, key.z - 1};
-        const CellKey to{from.x, from.y, key.z + 1};
-        std::size_t& q = cursor[d];
-        while (q < num_cells && cell_keys[q] < from) ++q;
-        for (std::size_t e = q; e < num_cells && !(to < cell_keys[e]); ++e) {
-          near_.push_back(static_cast<int>(e));
-          total += segs_[cell_seg_begin_[e + 1] - 1].end - segs_[cell_seg_begin_[e]].begin;
-        }
-      }
+      ForEachNearCell(cell_keys, c, cursor, [&](std::size_t e) {
+        near_.push_back(static_cast<int>(e));
+        total += segs_[cell_seg_begin_[e + 1] - 1].end - segs_[cell_seg_begin_[e]].begin;
+      });
       // Nearest cells first (itself, faces, edges, corners): the count of hits below a bound
       // reaches the cap with fewer tests.
       const auto ring = [&](int e) {
@@ -745,21 +754,12 @@ class Components {
     cell_seg_begin_.push_back(static_cast<int>(segs_.size()));
     parent_.resize(parts_.size());
     std::iota(parent_.begin(), parent_.end(), 0);
-    // Every pair of cells (c, e) with e >= c among each other's 27: nine monotone cursors over
-    // the sorted keys (as BallQuery).
-    const std::size_t num_cells = cell_keys.size();
+    // Every pair of cells (c, e) with e >= c among each other's 27.
     std::size_t cursor[9] = {};
-    for (std::size_t c = 0; c < num_cells; ++c) {
-      const CellKey key = cell_keys[c];
-      for (int d = 0; d < 9; ++d) {
-        const CellKey from{key.x + d / 3 - 1, key.y + d % 3 - 1, key.z - 1};
-        const CellKey to{from.x, from.y, key.z + 1};
-        std::size_t& q = cursor[d];
-        while (q < num_cells && cell_keys[q] < from) ++q;
-        for (std::size_t e = q; e < num_cells && !(to < cell_keys[e]); ++e) {
-          if (e >= c) JoinCells(static_cast<int>(c), static_cast<int>(e));
-        }
-      }
+    for (std::size_t c = 0; c < cell_keys.size(); ++c) {
+      ForEachNearCell(cell_keys, c, cursor, [&](std::size_t e) {
+        if (e >= c) JoinCells(static_cast<int>(c), static_cast<int>(e));
+      });
     }
   }
 
