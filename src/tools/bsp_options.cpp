@@ -8,6 +8,7 @@
 #include "dimr/geometry/error.h"
 #include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
+#include "tools/repeated_set.h"
 
 namespace dimr::tools {
 
@@ -34,21 +35,8 @@ nn::BspDataset LoadBspTrainingSets(const std::vector<std::string>& specs) {
   nn::BspDataset all;
   bool first = true;
   for (const std::string& spec : specs) {
-    std::string path = spec;
-    int repeat = 1;
-    const std::size_t at = spec.rfind('@');
-    if (at != std::string::npos) {
-      const std::string count = spec.substr(at + 1);
-      const bool digits =
-          !count.empty() && count.size() <= 3 &&
-          std::all_of(count.begin(), count.end(), [](char ch) { return ch >= '0' && ch <= '9'; });
-      if (!digits || std::stoi(count) < 1 || std::stoi(count) > 100) {
-        throw InvalidArgument("--train '" + spec +
-                              "': the repeat count after '@' must be an integer in 1..100");
-      }
-      repeat = std::stoi(count);
-      path = spec.substr(0, at);
-    }
+    const RepeatedSet set = ParseRepeatedSet(spec, "--train");
+    const std::string& path = set.path;
     const nn::BspDataset one = nn::BspDataset::Load(path);
     if (first) all.resolution = one.resolution;
     first = false;
@@ -57,7 +45,7 @@ nn::BspDataset LoadBspTrainingSets(const std::vector<std::string>& specs) {
                             std::to_string(one.resolution) + ", the first dataset " +
                             std::to_string(all.resolution));
     }
-    for (int r = 0; r < repeat; ++r) all.Append(one);
+    for (int r = 0; r < set.repeat; ++r) all.Append(one);
   }
   return all;
 }

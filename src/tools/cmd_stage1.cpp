@@ -31,6 +31,7 @@
 #include "tools/command_registry.h"
 #include "tools/config_options.h"
 #include "tools/render.h"
+#include "tools/repeated_set.h"
 #include "tools/sha256.h"
 #include "tools/stage1_inference_args.h"
 #include "tools/stage1_scenes.h"
@@ -77,23 +78,9 @@ std::vector<nn::Stage1Sample> LoadSceneSets(const std::vector<std::string>& spec
   if (specs.empty()) throw InvalidArgument("no scene set given");
   std::vector<nn::Stage1Sample> all;
   for (const std::string& spec : specs) {
-    std::string path = spec;
-    int repeat = 1;
-    const std::size_t at = spec.rfind('@');
-    if (at != std::string::npos && !std::filesystem::exists(spec)) {
-      const std::string count = spec.substr(at + 1);
-      const bool digits =
-          !count.empty() && count.size() <= 3 &&
-          std::all_of(count.begin(), count.end(), [](char c) { return c >= '0' && c <= '9'; });
-      if (!digits || std::stoi(count) < 1 || std::stoi(count) > 100) {
-        throw InvalidArgument("scene set '" + spec +
-                              "': the repeat count after '@' must be an integer in 1..100");
-      }
-      repeat = std::stoi(count);
-      path = spec.substr(0, at);
-    }
-    const auto part = LoadScenes(path, 0, threads);
-    for (int r = 0; r < repeat; ++r) all.insert(all.end(), part.begin(), part.end());
+    const RepeatedSet set = ParseRepeatedSet(spec, "scene set");
+    const auto part = LoadScenes(set.path, 0, threads);
+    for (int r = 0; r < set.repeat; ++r) all.insert(all.end(), part.begin(), part.end());
   }
   if (limit > 0 && static_cast<int>(all.size()) > limit) all.resize(limit);
   return all;
