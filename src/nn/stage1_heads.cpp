@@ -178,6 +178,7 @@ void Resize(std::size_t n, int nc, Stage1Output* out) {
   out->heading_residual.resize(n * kHeadingBins);
   out->offsets.resize(n);
   out->semantic.resize(n);
+  out->point_row.clear();
 }
 
 }  // namespace
@@ -185,35 +186,28 @@ void Resize(std::size_t n, int nc, Stage1Output* out) {
 void CopyOutOnePass(const VoxelHeads& h, const int* argmax, const std::int64_t* p2v, std::size_t n,
                     Stage1Output* out) {
   const int nc = h.classes;
-  Resize(n, nc, out);
-  float* sp = out->semantic_prob.data();
+  const std::size_t m = static_cast<std::size_t>(h.voxels);
+  // The tables stay per voxel (Stage1PointRows): ~20k rows of 49 floats instead of 100k, and
+  // read in their own order. Per point: the voxel, its class and its offset.
+  out->semantic_prob.assign(h.prob, h.prob + m * nc);
+  out->heading_prob.resize(m * kHeadingBins);
+  out->heading_residual.resize(m * kHeadingBins);
   float* hp = out->heading_prob.data();
   float* hr = out->heading_residual.data();
+  for (std::size_t v = 0; v < m; ++v) {
+    const float* bins = h.heading + v * 2 * kHeadingBins;
+    std::memcpy(hp + v * kHeadingBins, bins, sizeof(float) * kHeadingBins);
+    std::memcpy(hr + v * kHeadingBins, bins + kHeadingBins, sizeof(float) * kHeadingBins);
+  }
+  out->point_row.assign(p2v, p2v + n);
+  out->offsets.resize(n);
+  out->semantic.resize(n);
   Eigen::Vector3f* op = out->offsets.data();
   int* sem = out->semantic.data();
-  // Point order: the writes stream; a 100k-point room's ~25k voxel rows are a few MB read in
-  // another order than the points, so the rows 16 points ahead are prefetched.
   at::parallel_for(
-      0, static_cast<std::int64_t>(n), 4096, [&](std::int64_t begin, std::int64_t end) {
-        constexpr std::int64_t kAhead = 16;
+      0, static_cast<std::int64_t>(n), 8192, [&](std::int64_t begin, std::int64_t end) {
         for (std::int64_t i = begin; i < end; ++i) {
-          if (i + kAhead < end) {
-            const std::int64_t w = p2v[i + kAhead];
-            PrefetchRange(h.prob + w * nc, nc * 4);
-            PrefetchRange(h.heading + w * 2 * kHeadingBins, kHeadingBins * 4);
-            PrefetchRange(h.heading + w * 2 * kHeadingBins + kHeadingBins, kHeadingBins * 4);
-            PrefetchRange(h.offset + 3 * w, 12);
-            __builtin_prefetch(argmax + w);
-          }
           const std::int64_t v = p2v[i];
-          const float* p = h.prob + v * nc;
-          for (int c = 0; c < nc; ++c) sp[i * nc + c] = p[c];
-          const float* bins = h.heading + v * 2 * kHeadingBins;
-          const float* res = h.heading + v * 2 * kHeadingBins + kHeadingBins;
-          for (int b = 0; b < kHeadingBins; ++b) {
-            hp[i * kHeadingBins + b] = bins[b];
-            hr[i * kHeadingBins + b] = res[b];
-          }
           op[i] = Eigen::Vector3f(h.offset[3 * v], h.offset[3 * v + 1], h.offset[3 * v + 2]);
           sem[i] = argmax[v];
         }

@@ -42,12 +42,14 @@ struct RowLayout {
 void InputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, int k, int rotations,
                     float* rows);
 
-// One pass: every point gets its voxel's outputs (argmax: each voxel's class, from
-// SoftmaxInPlace; point_to_voxel [n]); sizes `out`'s arrays.
+// One pass: the probability tables per voxel (rows = voxels, out->point_row = point_to_voxel
+// [n]); every point gets its voxel's class (argmax, from SoftmaxInPlace) and offset. Sizes
+// `out`'s arrays.
 void CopyOutOnePass(const VoxelHeads& h, const int* argmax, const std::int64_t* point_to_voxel,
                     std::size_t n, Stage1Output* out);
 
-// Several passes: the mean of every point's voxel rows over the passes, summed in pass order.
+// Several passes: the mean of every point's voxel rows over the passes, summed in pass order
+// (one row per point: out->point_row empty).
 // The points are walked in the first pass's voxel order (voxel_offsets [m0 + 1] CSR over
 // voxel_points [n]); rows[0] (InputFrameRows of the first pass) is indexed by that voxel,
 // rows[k] (k >= 1) by voxel_of[k][j] for the j-th point of that order (voxel_of[0] unused).

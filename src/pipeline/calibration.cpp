@@ -31,10 +31,12 @@ void VotedLabels(const std::vector<CalibrationScene>& scenes, const std::vector<
                  std::vector<int>* gt, std::vector<int>* pred) {
   for (int k : idx) {
     const CalibrationScene& s = scenes[k];
-    std::vector<float> prob = s.network->semantic_prob;
-    std::vector<int> sem = ApplyClassBias(bias, &prob, kStage1RfsClasses);
+    std::vector<float> prob = s.network->semantic_prob;  // per row (Stage1PointRows)
+    std::vector<int> sem =
+        s.network->PerPoint(ApplyClassBias(bias, &prob, kStage1RfsClasses), s.points->size());
     if (vote.radius > 0) {
-      sem = VoteSemantics(*s.points, s.network->offsets, sem, prob, ThingClasses(), vote);
+      sem = VoteSemantics(*s.points, s.network->offsets, sem, prob, ThingClasses(), vote,
+                          s.network->point_row);
     }
     gt->insert(gt->end(), s.labels->begin(), s.labels->end());
     pred->insert(pred->end(), sem.begin(), sem.end());
@@ -61,8 +63,11 @@ ClassBiasFit FitOn(const std::vector<CalibrationScene>& scenes, const std::vecto
   std::vector<float> prob;
   for (int k : idx) {
     labels.insert(labels.end(), scenes[k].labels->begin(), scenes[k].labels->end());
-    prob.insert(prob.end(), scenes[k].network->semantic_prob.begin(),
-                scenes[k].network->semantic_prob.end());
+    const nn::Stage1PointRows& rows = *scenes[k].network;
+    for (std::size_t i = 0; i < scenes[k].points->size(); ++i) {  // one row per labelled point
+      const float* row = rows.SemanticProb(i, kStage1RfsClasses);
+      prob.insert(prob.end(), row, row + kStage1RfsClasses);
+    }
   }
   return FitClassBias(labels, prob, kStage1RfsClasses, options);
 }
@@ -110,11 +115,12 @@ CalibrationReport CalibrateStage1(const std::vector<CalibrationScene>& scenes,
   for (std::size_t k = 0; k < scenes.size(); ++k) {
     const CalibrationScene& s = scenes[k];
     if (!s.points || !s.labels || !s.network || s.labels->size() != s.points->size() ||
-        s.network->offsets.size() != s.points->size() ||
-        s.network->semantic_prob.size() != s.points->size() * kStage1RfsClasses) {
+        s.network->offsets.size() != s.points->size()) {
       throw InvalidArgument("calibration: scene " + std::to_string(k) +
                             " has missing or inconsistent points / labels / network outputs");
     }
+    s.network->CheckShape("calibration: scene " + std::to_string(k), s.points->size(),
+                          kStage1RfsClasses);
   }
   CalibrationReport rep;
   const SemanticVoteConfig configured_vote = VoteOf(config);

@@ -1180,7 +1180,8 @@ std::vector<int> PointIouNms(const std::vector<Proposal>& proposals, double iou_
 }
 
 double ProposalHeading(const std::vector<int>& points, const std::vector<float>& heading_prob,
-                       const std::vector<float>& heading_residual) {
+                       const std::vector<float>& heading_residual,
+                       const std::vector<std::int64_t>& point_row) {
   if (points.empty()) throw InvalidArgument("ProposalHeading: the proposal has no points");
   if (heading_prob.size() % kHeadingBins != 0) {
     throw InvalidArgument("ProposalHeading: heading_prob size " +
@@ -1191,21 +1192,29 @@ double ProposalHeading(const std::vector<int>& points, const std::vector<float>&
                           std::to_string(heading_residual.size()) + " values, heading_prob " +
                           std::to_string(heading_prob.size()));
   }
-  const std::size_t n = heading_prob.size() / kHeadingBins;
+  const std::size_t rows = heading_prob.size() / kHeadingBins;
+  const std::size_t n = point_row.empty() ? rows : point_row.size();
+  // The row of each point (checked once; the residual loop reads the same rows).
+  std::vector<std::size_t> row_of(points.size());
   double mean[kHeadingBins] = {};
-  for (int p : points) {
+  for (std::size_t j = 0; j < points.size(); ++j) {
+    const int p = points[j];
     if (p < 0 || static_cast<std::size_t>(p) >= n) {
       throw InvalidArgument("ProposalHeading: point index " + std::to_string(p) +
                             " out of range [0, " + std::to_string(n) + ")");
     }
-    const float* row = heading_prob.data() + static_cast<std::size_t>(p) * kHeadingBins;
+    const std::int64_t r = point_row.empty() ? p : point_row[static_cast<std::size_t>(p)];
+    if (r < 0 || static_cast<std::size_t>(r) >= rows) {
+      throw InvalidArgument("ProposalHeading: point " + std::to_string(p) + " has row " +
+                            std::to_string(r) + ", not in [0, " + std::to_string(rows) + ")");
+    }
+    row_of[j] = static_cast<std::size_t>(r);
+    const float* row = heading_prob.data() + row_of[j] * kHeadingBins;
     for (int b = 0; b < kHeadingBins; ++b) mean[b] += row[b];
   }
   const int k = static_cast<int>(std::max_element(mean, mean + kHeadingBins) - mean);
   double residual = 0.0;
-  for (int p : points) {
-    residual += heading_residual[static_cast<std::size_t>(p) * kHeadingBins + k];
-  }
+  for (std::size_t r : row_of) residual += heading_residual[r * kHeadingBins + k];
   residual /= static_cast<double>(points.size());
   return DecodeHeading(k, residual);
 }

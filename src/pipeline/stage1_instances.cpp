@@ -20,6 +20,39 @@ void CheckSize(const char* name, std::size_t got, std::size_t want) {
   }
 }
 
+// The number of probability rows of `n` points: n without a map, else the map's entries must
+// be n rows in [0, table_size / dim) (a table of whole rows).
+std::size_t CheckRows(const std::string& who, const char* table, std::size_t table_size,
+                      std::size_t dim, std::size_t n, const std::vector<std::int64_t>& point_row) {
+  if (point_row.empty()) {
+    if (table_size != n * dim) {
+      throw InvalidArgument(who + ": " + table + " has " + std::to_string(table_size) +
+                            " values, expected " + std::to_string(n * dim));
+    }
+    return n;
+  }
+  if (point_row.size() != n || table_size % dim != 0) {
+    throw InvalidArgument(who + ": point_row has " + std::to_string(point_row.size()) +
+                          " entries for " + std::to_string(n) + " points, " + table + " " +
+                          std::to_string(table_size) + " values (rows of " + std::to_string(dim) +
+                          ")");
+  }
+  const std::size_t rows = table_size / dim;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (point_row[i] < 0 || static_cast<std::size_t>(point_row[i]) >= rows) {
+      throw InvalidArgument(who + ": point_row[" + std::to_string(i) +
+                            "] = " + std::to_string(point_row[i]) + " is not in [0, " +
+                            std::to_string(rows) + ")");
+    }
+  }
+  return rows;
+}
+
+inline std::size_t RowOf(const std::vector<std::int64_t>& point_row, int i) {
+  return point_row.empty() ? static_cast<std::size_t>(i)
+                           : static_cast<std::size_t>(point_row[static_cast<std::size_t>(i)]);
+}
+
 }  // namespace
 
 void Stage1InstanceConfig::Validate() const {
@@ -45,16 +78,18 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
     const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
     const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
-    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config) {
+    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config,
+    const std::vector<std::int64_t>& point_row) {
   config.Validate();
   const std::size_t n = points.size();
   const std::size_t num_sem = rfs_to_cad.size();
   if (num_sem == 0) throw InvalidArgument("ExtractStage1Instances: rfs_to_cad is empty");
   CheckSize("offsets", offsets.size(), n);
   CheckSize("cad_label", cad_label.size(), n);
-  CheckSize("semantic_prob", semantic_prob.size(), n * num_sem);
-  CheckSize("heading_prob", heading_prob.size(), n * nn::kHeadingBins);
-  CheckSize("heading_residual", heading_residual.size(), n * nn::kHeadingBins);
+  const std::size_t rows = CheckRows("ExtractStage1Instances", "semantic_prob",
+                                     semantic_prob.size(), num_sem, n, point_row);
+  CheckSize("heading_prob", heading_prob.size(), rows * nn::kHeadingBins);
+  CheckSize("heading_residual", heading_residual.size(), rows * nn::kHeadingBins);
   for (std::size_t i = 0; i < n; ++i) {
     if (cad_label[i] < -1 || cad_label[i] >= kNumCadClasses) {
       throw InvalidArgument("ExtractStage1Instances: cad_label[" + std::to_string(i) +
@@ -77,7 +112,7 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     double sum = 0.0;
     const std::vector<std::size_t>& classes = classes_of[p.label];
     for (int i : p.points) {
-      const float* row = semantic_prob.data() + static_cast<std::size_t>(i) * num_sem;
+      const float* row = semantic_prob.data() + RowOf(point_row, i) * num_sem;
       for (std::size_t c : classes) sum += row[c];
     }
     p.score = sum / static_cast<double>(p.points.size());
@@ -93,7 +128,7 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     ScoredInstance inst;
     inst.cad_class = large[k].label;
     inst.score = large[k].score;
-    inst.heading = ProposalHeading(large[k].points, heading_prob, heading_residual);
+    inst.heading = ProposalHeading(large[k].points, heading_prob, heading_residual, point_row);
     inst.points = std::move(large[k].points);
     instances.push_back(std::move(inst));
   }
@@ -121,8 +156,8 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
                                const std::vector<Eigen::Vector3f>& offsets,
                                const std::vector<int>& semantic,
                                const std::vector<float>& semantic_prob,
-                               const std::vector<bool>& is_thing,
-                               const SemanticVoteConfig& config) {
+                               const std::vector<bool>& is_thing, const SemanticVoteConfig& config,
+                               const std::vector<std::int64_t>& point_row) {
   config.Validate();
   const std::size_t n = points.size();
   const std::size_t num_classes = is_thing.size();
@@ -135,7 +170,7 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   };
   check("offsets", offsets.size(), n);
   check("semantic", semantic.size(), n);
-  check("semantic_prob", semantic_prob.size(), n * num_classes);
+  CheckRows("VoteSemantics", "semantic_prob", semantic_prob.size(), num_classes, n, point_row);
   std::vector<bool> votes = is_thing;
   for (int c : config.excluded_classes) {
     if (static_cast<std::size_t>(c) >= num_classes) {
@@ -166,7 +201,7 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   for (const auto& cluster : clusters) {
     std::fill(sum.begin(), sum.end(), 0.0);
     for (int i : cluster) {
-      const float* row = semantic_prob.data() + static_cast<std::size_t>(i) * num_classes;
+      const float* row = semantic_prob.data() + RowOf(point_row, i) * num_classes;
       for (std::size_t c = 0; c < num_classes; ++c) {
         if (!std::isfinite(row[c])) {
           throw InvalidArgument("VoteSemantics: semantic_prob of point " + std::to_string(i) +

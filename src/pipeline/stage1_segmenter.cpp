@@ -406,10 +406,8 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
   r.timings.Add("unet", t.unet_ms);
   r.timings.Add("heads", t.heads_ms);
   r.semantic = std::move(out.semantic);
-  r.semantic_prob = std::move(out.semantic_prob);
+  static_cast<nn::Stage1PointRows&>(r) = std::move(static_cast<nn::Stage1PointRows&>(out));
   r.offsets = std::move(out.offsets);
-  r.heading_prob = std::move(out.heading_prob);
-  r.heading_residual = std::move(out.heading_residual);
   r.features = std::move(out.features);
   r.feature_dim = with_features ? feature_dim() : 0;
   r.network_origin = out.frame.origin;
@@ -419,6 +417,7 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
 void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
                              const Stage1InferenceConfig& config, Stage1Result* r) {
   config.Validate();
+  r->CheckShape("Stage1Segmenter::Finish", points.size(), kStage1RfsClasses);
   const std::vector<int>& rfs_to_cad = Stage1RfsToCad();
   static const std::vector<bool> is_thing = [] {
     std::vector<bool> t(kStage1RfsClasses, true);
@@ -429,21 +428,24 @@ void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
   {
     ScopedTimer t(&r->timings, "class_bias");
     if (!config.class_bias.empty()) {
-      r->semantic = ApplyClassBias(config.class_bias, &r->semantic_prob, kStage1RfsClasses);
+      // Per row (a voxel's points share it), then spread to the points.
+      r->semantic = r->PerPoint(
+          ApplyClassBias(config.class_bias, &r->semantic_prob, kStage1RfsClasses), points.size());
     }
   }
   {
     ScopedTimer t(&r->timings, "vote");
     if (config.vote_radius > 0) {
       r->semantic = VoteSemantics(points, r->offsets, r->semantic, r->semantic_prob, is_thing,
-                                  cfg.semantic_vote);
+                                  cfg.semantic_vote, r->point_row);
     }
   }
   ScopedTimer t(&r->timings, "clustering");
   r->cad_label.resize(r->semantic.size());
   for (std::size_t i = 0; i < r->semantic.size(); ++i) r->cad_label[i] = rfs_to_cad[r->semantic[i]];
-  r->instances = ExtractStage1Instances(points, r->offsets, r->cad_label, r->semantic_prob,
-                                        r->heading_prob, r->heading_residual, rfs_to_cad, cfg);
+  r->instances =
+      ExtractStage1Instances(points, r->offsets, r->cad_label, r->semantic_prob, r->heading_prob,
+                             r->heading_residual, rfs_to_cad, cfg, r->point_row);
 }
 
 Stage1Result Stage1Segmenter::Segment(const PointCloudInput& input, bool with_features) const {

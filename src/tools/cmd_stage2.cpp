@@ -167,7 +167,8 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
   r.out = model.PredictAugmented(s, st.rotations, st.mirror, true);
   const int nc = static_cast<int>(rfs_to_cad.size());
   if (!st.class_bias.empty()) {
-    r.out.semantic = pipeline::ApplyClassBias(st.class_bias, &r.out.semantic_prob, nc);
+    r.out.semantic = r.out.PerPoint(
+        pipeline::ApplyClassBias(st.class_bias, &r.out.semantic_prob, nc), s.points.size());
   }
   if (st.vote_radius > 0) {
     std::vector<bool> is_thing(nc, true);
@@ -177,7 +178,7 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
     vc.min_points = st.vote_min_points;
     vc.excluded_classes = st.vote_exclude;
     r.out.semantic = pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic,
-                                             r.out.semantic_prob, is_thing, vc);
+                                             r.out.semantic_prob, is_thing, vc, r.out.point_row);
   }
   std::vector<int> cad(r.out.semantic.size());
   for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[r.out.semantic[i]];
@@ -186,13 +187,13 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
   cc.min_points = std::max(1, min_points);
   r.proposals = pipeline::MultiScaleClusters(s.points, r.out.offsets, cad, cc);
   for (const auto& p : r.proposals) {
-    r.headings.push_back(
-        pipeline::ProposalHeading(p.points, r.out.heading_prob, r.out.heading_residual));
+    r.headings.push_back(pipeline::ProposalHeading(p.points, r.out.heading_prob,
+                                                   r.out.heading_residual, r.out.point_row));
     double score = 0;
     for (int i : p.points) {
+      const float* row = r.out.SemanticProb(static_cast<std::size_t>(i), nc);
       for (int c = 0; c < nc; ++c) {
-        if (rfs_to_cad[c] == p.label)
-          score += r.out.semantic_prob[static_cast<std::size_t>(i) * nc + c];
+        if (rfs_to_cad[c] == p.label) score += row[c];
       }
     }
     r.scores.push_back(score / static_cast<double>(p.points.size()));

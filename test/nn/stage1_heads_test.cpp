@@ -70,7 +70,8 @@ Stage1Output PerPointAverage(const Stage1Model& model, const std::vector<Eigen::
         moved[i] = Eigen::Vector3f(static_cast<float>(centre.x() + c * x - sn * y),
                                    static_cast<float>(centre.y() + sn * x + c * y), points[i].z());
       }
-      const Stage1Output o = model.Predict(ScenePoints(moved, colours, "moved"));
+      Stage1Output o = model.Predict(ScenePoints(moved, colours, "moved"));
+      o.ExpandToPoints(n, nc);  // per-voxel rows -> one row per point
       ++passes;
       for (std::size_t i = 0; i < n; ++i) {
         for (int j = 0; j < nc; ++j) sem[i * nc + j] += o.semantic_prob[i * nc + j];
@@ -139,7 +140,8 @@ void ExpectSameAverage(const Stage1Model& model, const std::vector<Eigen::Vector
   }
   EXPECT_LT(ties, static_cast<int>(n / 100));
   // Not vacuous: a single pass differs from the average by far more than the tolerance.
-  const Stage1Output plain = model.Predict(view);
+  Stage1Output plain = model.Predict(view);
+  plain.ExpandToPoints(n, nc);
   EXPECT_GT(MaxDiff(plain.semantic_prob, want.semantic_prob), 1e-3);
   EXPECT_GT(MaxDiff(plain.heading_prob, want.heading_prob), 1e-3);
 }

@@ -215,9 +215,34 @@ TEST(Stage1Model, PredictShapesAndDeterminism) {
   const Stage1Output b = model.Predict(s);
   const std::size_t n = s.points.size();
   ASSERT_EQ(a.semantic.size(), n);
-  ASSERT_EQ(a.semantic_prob.size(), n * kStage1Classes);
-  ASSERT_EQ(a.heading_prob.size(), n * kHeadingBins);
-  ASSERT_EQ(a.heading_residual.size(), n * kHeadingBins);
+  // One pass: the probability tables per voxel (10 cm voxels: several points share one).
+  ASSERT_EQ(a.point_row.size(), n);
+  const std::size_t rows = a.NumRows();
+  ASSERT_LT(rows, n);
+  ASSERT_EQ(a.semantic_prob.size(), rows * kStage1Classes);
+  ASSERT_EQ(a.heading_prob.size(), rows * kHeadingBins);
+  ASSERT_EQ(a.heading_residual.size(), rows * kHeadingBins);
+  EXPECT_NO_THROW(a.CheckShape("a", n));
+  EXPECT_THROW(a.CheckShape("a", n + 1), InvalidArgument);
+  std::vector<int> used(rows, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* p = a.SemanticProb(i);
+    ASSERT_EQ(a.semantic[i], std::max_element(p, p + kStage1Classes) - p) << i;
+    used[a.Row(i)] = 1;
+  }
+  EXPECT_EQ(std::count(used.begin(), used.end(), 1), static_cast<long>(rows));  // no dead row
+  // Expanded: one row per point, each the point's voxel row.
+  Stage1Output e = a;
+  e.ExpandToPoints(n);
+  ASSERT_TRUE(e.point_row.empty());
+  ASSERT_EQ(e.semantic_prob.size(), n * kStage1Classes);
+  for (std::size_t i = 0; i < n; i += 37) {
+    for (int b = 0; b < kHeadingBins; ++b) {
+      ASSERT_EQ(e.heading_prob[i * kHeadingBins + b], a.HeadingProb(i)[b]);
+      ASSERT_EQ(e.heading_residual[i * kHeadingBins + b], a.HeadingResidual(i)[b]);
+    }
+    ASSERT_EQ(e.semantic_prob[i * kStage1Classes + 3], a.SemanticProb(i)[3]);
+  }
   ASSERT_EQ(a.offsets.size(), n);
   ASSERT_EQ(a.features.size(), n * 8);
   EXPECT_TRUE(b.features.empty());
@@ -475,9 +500,11 @@ TEST(Stage1Model, RotationAndMirrorAveragingIsEquivariant) {
   // Single passes are not rotation-invariant: the test has something to show.
   const Stage1Output plain = model.Predict(s), plain_turned = model.Predict(turned);
   double plain_diff = 0;
-  for (std::size_t i = 0; i < plain.semantic_prob.size(); ++i) {
-    plain_diff = std::max<double>(plain_diff,
-                                  std::abs(plain.semantic_prob[i] - plain_turned.semantic_prob[i]));
+  for (std::size_t i = 0; i < n; ++i) {
+    for (int c = 0; c < kStage1Classes; ++c) {
+      plain_diff = std::max<double>(
+          plain_diff, std::abs(plain.SemanticProb(i)[c] - plain_turned.SemanticProb(i)[c]));
+    }
   }
   EXPECT_GT(plain_diff, 1e-3);
 
@@ -602,11 +629,11 @@ TEST(Stage1Model, VoxelHeadsGiveThePointPathsOutputs) {
   int labelled = 0, valid = 0, boxed = 0;
   for (std::size_t i = 0; i < n; ++i) {
     if (batch.semantic[i] != kStage1Ignore) {
-      ce -= std::log(out.semantic_prob[i * kStage1Classes + batch.semantic[i]]);
+      ce -= std::log(out.SemanticProb(i)[batch.semantic[i]]);
       ++labelled;
     }
     if (batch.heading_bin[i] != kStage1Ignore) {
-      hcls -= std::log(out.heading_prob[i * kHeadingBins + batch.heading_bin[i]]);
+      hcls -= std::log(out.HeadingProb(i)[batch.heading_bin[i]]);
       ++boxed;
     }
     if (batch.offset_valid[i]) {

@@ -562,6 +562,15 @@ TEST(ClusterHeading, ArgmaxOfMeanProbabilityPlusMeanResidual) {
   EXPECT_THROW(ProposalHeading({}, rows.prob, rows.res), InvalidArgument);
   EXPECT_THROW(ProposalHeading({3}, rows.prob, rows.res), InvalidArgument);
   EXPECT_THROW(ProposalHeading({0}, rows.prob, {}), InvalidArgument);
+  // Shared rows (per-voxel tables): points 0..3 read rows 1, 0, 1, 2 - the proposal {0, 1, 2}
+  // is rows {1, 0, 1}: bin 2 wins ((0.5 + 0.4 + 0.5) / 3 against 0.8 / 3 at bins 1 and 5), its
+  // residual the mean of -0.6, 0.2, -0.6.
+  const std::vector<std::int64_t> point_row = {1, 0, 1, 2};
+  EXPECT_NEAR(ProposalHeading({0, 1, 2}, rows.prob, rows.res, point_row),
+              2 * kPi / 6 + (-0.6 + 0.2 - 0.6) / 3 * kPi / 12, 1e-6);
+  EXPECT_NEAR(ProposalHeading({3}, rows.prob, rows.res, point_row), 7 * kPi / 6 - 2 * kPi, 1e-6);
+  EXPECT_THROW(ProposalHeading({4}, rows.prob, rows.res, point_row), InvalidArgument);
+  EXPECT_THROW(ProposalHeading({0}, rows.prob, rows.res, {3}), InvalidArgument);  // row 3 of 3
 }
 
 TEST(ClusterHeading, WrapsToMinusPiPi) {

@@ -161,8 +161,10 @@ TEST(Stage1Segmenter, RunsTheWholeChainWithBiasVoteAndTimings) {
   const std::size_t n = room.size();
   ASSERT_EQ(r.semantic.size(), n);
   ASSERT_EQ(r.cad_label.size(), n);
-  ASSERT_EQ(r.semantic_prob.size(), n * 25);
-  ASSERT_EQ(r.heading_prob.size(), n * 12);
+  // One pass: probability rows per voxel, point_row maps the points to them.
+  ASSERT_EQ(r.point_row.size(), n);
+  EXPECT_LT(r.NumRows(), n);
+  EXPECT_NO_THROW(r.CheckShape("r", n));
   EXPECT_EQ(r.feature_dim, seg.feature_dim());
   EXPECT_EQ(r.features.size(), n * static_cast<std::size_t>(seg.feature_dim()));
   for (std::size_t i = 0; i < n; ++i) {
@@ -209,6 +211,38 @@ TEST(Stage1Segmenter, RunsTheWholeChainWithBiasVoteAndTimings) {
   for (std::size_t k = 0; k < c.instances.size(); ++k) {
     EXPECT_EQ(split.instances[k].points, c.instances[k].points);
   }
+  // Bias, vote, scores and headings read the per-voxel rows as the same rows spread to every
+  // point would give them (a wrong point -> row lookup changes labels, scores or headings).
+  for (const Stage1Segmenter* s : {&seg, &chairs}) {
+    Stage1Result voxel_rows = s->RunNetwork(room);
+    Stage1Result point_rows = voxel_rows;
+    point_rows.ExpandToPoints(n);
+    ASSERT_TRUE(point_rows.point_row.empty());
+    Stage1Segmenter::Finish(room.points, s->config(), &voxel_rows);
+    Stage1Segmenter::Finish(room.points, s->config(), &point_rows);
+    EXPECT_EQ(voxel_rows.semantic, point_rows.semantic);
+    ASSERT_EQ(voxel_rows.instances.size(), point_rows.instances.size());
+    for (std::size_t k = 0; k < voxel_rows.instances.size(); ++k) {
+      EXPECT_EQ(voxel_rows.instances[k].points, point_rows.instances[k].points);
+      EXPECT_EQ(voxel_rows.instances[k].score, point_rows.instances[k].score);
+      EXPECT_EQ(voxel_rows.instances[k].heading, point_rows.instances[k].heading);
+    }
+    for (std::size_t i = 0; i < n; i += 53) {
+      ASSERT_EQ(voxel_rows.SemanticProb(i)[4], point_rows.SemanticProb(i)[4]);  // biased alike
+    }
+  }
+  // A map that does not fit the points is refused, naming it.
+  Stage1Result bad = chairs.RunNetwork(room);
+  bad.point_row.pop_back();
+  EXPECT_THROW(Stage1Segmenter::Finish(room.points, chairs.config(), &bad), InvalidArgument);
+  bad = chairs.RunNetwork(room);
+  bad.point_row[7] = static_cast<std::int64_t>(bad.NumRows());
+  try {
+    Stage1Segmenter::Finish(room.points, chairs.config(), &bad);
+    ADD_FAILURE() << "no throw";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("point_row[7]"), std::string::npos) << e.what();
+  }
 }
 
 TEST(Stage1Segmenter, TestTimeAugmentationAveragesThePasses) {
@@ -219,8 +253,12 @@ TEST(Stage1Segmenter, TestTimeAugmentationAveragesThePasses) {
   cfg.mirror = true;
   const Stage1Result four = Stage1Segmenter::Load(kModel, cfg).Segment(room);
   double diff = 0, row = 0;
-  for (std::size_t i = 0; i < one.semantic_prob.size(); ++i) {
-    diff = std::max<double>(diff, std::abs(one.semantic_prob[i] - four.semantic_prob[i]));
+  ASSERT_TRUE(four.point_row.empty());  // each point its own mean
+  ASSERT_EQ(four.semantic_prob.size(), room.size() * 25);
+  for (std::size_t i = 0; i < room.size(); ++i) {
+    for (int k = 0; k < 25; ++k) {
+      diff = std::max<double>(diff, std::abs(one.SemanticProb(i)[k] - four.SemanticProb(i)[k]));
+    }
   }
   for (int k = 0; k < 25; ++k) row += four.semantic_prob[k];
   EXPECT_GT(diff, 1e-4);  // the passes differ, so the average is not the plain pass

@@ -76,13 +76,54 @@ struct Stage1StepLog {
          optimizer_ms = 0;
 };
 
-// Per-point results of one scene (in the input point order).
-struct Stage1Output {
-  std::vector<int> semantic;             // argmax RFS class
-  std::vector<float> semantic_prob;      // N x 25 softmax
-  std::vector<Eigen::Vector3f> offsets;  // predicted shift to the instance centre (m)
-  std::vector<float> heading_prob;       // N x 12 softmax of the bin logits
-  std::vector<float> heading_residual;   // N x 12 normalised residuals
+// The probability tables of stage 1, stored once per row: a row is a voxel of the network's
+// grid after a single pass (every point of a voxel has the voxel's outputs: the 100k points
+// of a room share ~20k rows, so the tables are a fifth of a per-point copy) or, after
+// test-time augmentation (each point its own mean), a point. point_row[i] is the row of point
+// i; empty means row i is point i. Read a point's values with SemanticProb(i) etc.
+struct Stage1PointRows {
+  std::vector<float> semantic_prob;     // R x C softmax (C = 25)
+  std::vector<float> heading_prob;      // R x 12 softmax of the bin logits
+  std::vector<float> heading_residual;  // R x 12 normalised residuals
+  std::vector<std::int64_t> point_row;  // N rows in [0, R), or empty (R = N)
+
+  std::size_t Row(std::size_t i) const {
+    return point_row.empty() ? i : static_cast<std::size_t>(point_row[i]);
+  }
+  std::size_t NumRows(int classes = kStage1Classes) const {
+    return semantic_prob.size() / static_cast<std::size_t>(classes);
+  }
+  const float* SemanticProb(std::size_t i, int classes = kStage1Classes) const {
+    return semantic_prob.data() + Row(i) * static_cast<std::size_t>(classes);
+  }
+  const float* HeadingProb(std::size_t i) const {
+    return heading_prob.data() + Row(i) * kHeadingBins;
+  }
+  const float* HeadingResidual(std::size_t i) const {
+    return heading_residual.data() + Row(i) * kHeadingBins;
+  }
+  // Per-row values spread to `points` points (identity for per-point rows): out[i] = v[Row(i)].
+  template <typename T>
+  std::vector<T> PerPoint(const std::vector<T>& per_row, std::size_t points) const {
+    if (point_row.empty()) return per_row;
+    std::vector<T> out(points);
+    for (std::size_t i = 0; i < points; ++i) out[i] = per_row[point_row[i]];
+    return out;
+  }
+  // Rewrites the tables with one row per point (point_row becomes empty): for callers that
+  // concatenate rooms or edit single points.
+  void ExpandToPoints(std::size_t points, int classes = kStage1Classes);
+  // Throws dimr::InvalidArgument (prefixed by `who`) unless the tables hold whole rows of C,
+  // 12 and 12 floats, the same count R of each, and point_row has `points` entries in [0, R)
+  // (or is empty with R == points).
+  void CheckShape(const std::string& who, std::size_t points, int classes = kStage1Classes) const;
+};
+
+// Per-point results of one scene (in the input point order); the probability tables per row
+// (Stage1PointRows).
+struct Stage1Output : Stage1PointRows {
+  std::vector<int> semantic;             // N argmax RFS class
+  std::vector<Eigen::Vector3f> offsets;  // N predicted shifts to the instance centre (m)
   std::vector<float> features;           // N x widths[0] point features (if requested)
   NetworkFrame frame;                    // the frame the network saw
 };

@@ -13,6 +13,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <cstdint>
 #include <utility>
 #include <vector>
 
@@ -102,11 +103,13 @@ std::vector<int> PointIouNms(const std::vector<Proposal>& proposals, double iou_
 // Proposal heading (section 15 fact 3): k = argmax over the mean of the points' 12 bin
 // probabilities (first maximum on ties), plus the mean normalised residual of bin k times
 // pi/12, added to the bin centre k * pi/6; wrapped to (-pi, pi]. heading_prob and
-// heading_residual are N x 12 row-major per-point arrays. Throws dimr::InvalidArgument if
-// `points` is empty, an array's size is not a multiple of 12, the two differ, or an index is
-// out of range.
+// heading_residual are R x 12 row-major arrays; point i's row is point_row[i] (per-voxel rows,
+// nn::Stage1PointRows) or i when point_row is empty. Throws dimr::InvalidArgument if `points`
+// is empty, an array's size is not a multiple of 12, the two differ, or an index or row is out
+// of range.
 double ProposalHeading(const std::vector<int>& points, const std::vector<float>& heading_prob,
-                       const std::vector<float>& heading_residual);
+                       const std::vector<float>& heading_residual,
+                       const std::vector<std::int64_t>& point_row = {});
 
 // (Heading codes themselves: nn::EncodeHeading / nn::DecodeHeading, dimr/nn/stage1_data.h.)
 

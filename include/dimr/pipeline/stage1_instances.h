@@ -50,18 +50,20 @@ struct ScoredInstance {
 };
 
 // points, offsets: N predicted offsets (metres). cad_label: per point 0..7, or -1 for a
-// non-CAD point. semantic_prob: N x C softmax, row-major, C = rfs_to_cad.size() (25 for the
-// RFS label set). heading_prob / heading_residual: N x 12 row-major (bin probabilities,
-// normalised residuals). rfs_to_cad: CAD id per semantic class (any value outside 0..7 means
-// non-CAD). The score of a proposal of CAD class c is the mean over its points of the summed
-// probability of the semantic classes that map to c. Proposals with > min_points points go
-// through NMS; the kept ones are returned in descending score order. Throws
+// non-CAD point. semantic_prob: R x C softmax, row-major, C = rfs_to_cad.size() (25 for the
+// RFS label set). heading_prob / heading_residual: R x 12 row-major (bin probabilities,
+// normalised residuals). Point i's rows are row point_row[i] (per-voxel tables,
+// nn::Stage1PointRows), or row i when point_row is empty (R = N). rfs_to_cad: CAD id per semantic
+// class (any value outside 0..7 means non-CAD). The score of a proposal of CAD class c is the mean
+// over its points of the summed probability of the semantic classes that map to c. Proposals with >
+// min_points points go through NMS; the kept ones are returned in descending score order. Throws
 // dimr::InvalidArgument on size mismatches or a cad_label outside [-1, 7].
 std::vector<ScoredInstance> ExtractStage1Instances(
     const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
     const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
     const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
-    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config);
+    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config,
+    const std::vector<std::int64_t>& point_row = {});
 
 }  // namespace dimr::pipeline
 
@@ -73,13 +75,15 @@ namespace dimr::pipeline {
 // points + offsets with `config.radius`; every cluster of >= min_points points takes the
 // class with the largest summed probability over its points (thing classes only) and all its
 // points get that class. Stuff points and small clusters keep their labels. semantic: N argmax
-// classes in [0, C); semantic_prob: N x C row-major; is_thing: C flags. Returns the refined
+// classes in [0, C); semantic_prob: R x C row-major, point i's row point_row[i] (or i when
+// point_row is empty, R = N); is_thing: C flags. Returns the refined
 // labels (a copy of `semantic` if radius is 0). Throws dimr::InvalidArgument on size
 // mismatches, a label outside [0, C) or non-finite probabilities of a voting point.
 std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
                                const std::vector<Eigen::Vector3f>& offsets,
                                const std::vector<int>& semantic,
                                const std::vector<float>& semantic_prob,
-                               const std::vector<bool>& is_thing, const SemanticVoteConfig& config);
+                               const std::vector<bool>& is_thing, const SemanticVoteConfig& config,
+                               const std::vector<std::int64_t>& point_row = {});
 
 }  // namespace dimr::pipeline

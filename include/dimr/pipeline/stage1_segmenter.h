@@ -19,6 +19,7 @@
 
 #include "dimr/core/config_fields.h"
 #include "dimr/core/timing.h"
+#include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/clustering.h"
 #include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/point_cloud_input.h"
@@ -113,14 +114,15 @@ struct Stage1InferenceConfig {
 std::vector<ClusterPass> ParseClusterPasses(const std::string& text);
 std::string ClusterPassesToString(const std::vector<ClusterPass>& passes);
 
-// Per point in the input order (N points, C = 25 classes, B = 12 heading bins).
-struct Stage1Result {
+// Per point in the input order (N points, C = 25 classes, B = 12 heading bins). The
+// probability tables (semantic_prob R x C, averaged over the passes, then biased; heading_prob
+// and heading_residual R x B) are per row, nn::Stage1PointRows: one row per voxel after a
+// single pass, one per point after test-time augmentation; read point i's with
+// SemanticProb(i), HeadingProb(i), HeadingResidual(i), or ExpandToPoints() them.
+struct Stage1Result : nn::Stage1PointRows {
   std::vector<int> semantic;             // RFS class after the bias and the vote
   std::vector<int> cad_label;            // CAD class of `semantic` (0..7) or -1
-  std::vector<float> semantic_prob;      // N x C, averaged over the passes, then biased
   std::vector<Eigen::Vector3f> offsets;  // predicted shift to the instance centre (m)
-  std::vector<float> heading_prob;       // N x B bin probabilities
-  std::vector<float> heading_residual;   // N x B normalised residuals
   std::vector<float> features;           // N x feature_dim (only when asked)
   int feature_dim = 0;                   // the network's widths[0]
   Eigen::Vector3f network_origin = Eigen::Vector3f::Zero();  // the frame the network saw
