@@ -8,13 +8,40 @@
 
 namespace dimr::nn {
 
-void Stage1PointRows::CheckShape(const std::string& who, std::size_t points, int classes) const {
-  const std::size_t c = static_cast<std::size_t>(classes);
-  if (classes < 1 || semantic_prob.size() % c != 0) {
-    throw InvalidArgument(who + ": semantic_prob has " + std::to_string(semantic_prob.size()) +
-                          " values, not whole rows of " + std::to_string(classes) + " classes");
+std::size_t CheckPointRows(const std::string& who, const char* table, std::size_t table_size,
+                           std::size_t dim, std::size_t points,
+                           const std::vector<std::int64_t>& point_row) {
+  if (point_row.empty()) {
+    if (table_size != points * dim) {
+      throw InvalidArgument(who + ": " + table + " has " + std::to_string(table_size) +
+                            " values, expected " + std::to_string(points * dim) +
+                            " (no point_row map)");
+    }
+    return points;
   }
-  const std::size_t rows = semantic_prob.size() / c;
+  if (dim == 0 || point_row.size() != points || table_size % dim != 0) {
+    throw InvalidArgument(who + ": point_row has " + std::to_string(point_row.size()) +
+                          " entries for " + std::to_string(points) + " points, " + table + " " +
+                          std::to_string(table_size) + " values (rows of " + std::to_string(dim) +
+                          ")");
+  }
+  const std::size_t rows = table_size / dim;
+  for (std::size_t i = 0; i < points; ++i) {
+    if (point_row[i] < 0 || static_cast<std::size_t>(point_row[i]) >= rows) {
+      throw InvalidArgument(who + ": point_row[" + std::to_string(i) +
+                            "] = " + std::to_string(point_row[i]) + " is not in [0, " +
+                            std::to_string(rows) + ")");
+    }
+  }
+  return rows;
+}
+
+void Stage1PointRows::CheckShape(const std::string& who, std::size_t points, int classes) const {
+  if (classes < 1) {
+    throw InvalidArgument(who + ": " + std::to_string(classes) + " classes (must be >= 1)");
+  }
+  const std::size_t rows = CheckPointRows(who, "semantic_prob", semantic_prob.size(),
+                                          static_cast<std::size_t>(classes), points, point_row);
   const auto check = [&](const char* name, std::size_t got) {
     if (got != rows * kHeadingBins) {
       throw InvalidArgument(who + ": " + name + " has " + std::to_string(got) + " values, " +
@@ -23,24 +50,6 @@ void Stage1PointRows::CheckShape(const std::string& who, std::size_t points, int
   };
   check("heading_prob", heading_prob.size());
   check("heading_residual", heading_residual.size());
-  if (point_row.empty()) {
-    if (rows != points) {
-      throw InvalidArgument(who + ": " + std::to_string(rows) + " probability rows for " +
-                            std::to_string(points) + " points and no point_row map");
-    }
-    return;
-  }
-  if (point_row.size() != points) {
-    throw InvalidArgument(who + ": point_row has " + std::to_string(point_row.size()) +
-                          " entries for " + std::to_string(points) + " points");
-  }
-  for (std::size_t i = 0; i < points; ++i) {
-    if (point_row[i] < 0 || static_cast<std::size_t>(point_row[i]) >= rows) {
-      throw InvalidArgument(who + ": point_row[" + std::to_string(i) +
-                            "] = " + std::to_string(point_row[i]) + " is not in [0, " +
-                            std::to_string(rows) + ")");
-    }
-  }
 }
 
 void Stage1PointRows::ExpandToPoints(std::size_t points, int classes) {

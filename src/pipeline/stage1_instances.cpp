@@ -7,6 +7,7 @@
 
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_data.h"
+#include "dimr/nn/stage1_model.h"
 
 namespace dimr::pipeline {
 namespace {
@@ -18,34 +19,6 @@ void CheckSize(const char* name, std::size_t got, std::size_t want) {
     throw InvalidArgument(std::string("ExtractStage1Instances: ") + name + " has " +
                           std::to_string(got) + " values, expected " + std::to_string(want));
   }
-}
-
-// The number of probability rows of `n` points: n without a map, else the map's entries must
-// be n rows in [0, table_size / dim) (a table of whole rows).
-std::size_t CheckRows(const std::string& who, const char* table, std::size_t table_size,
-                      std::size_t dim, std::size_t n, const std::vector<std::int64_t>& point_row) {
-  if (point_row.empty()) {
-    if (table_size != n * dim) {
-      throw InvalidArgument(who + ": " + table + " has " + std::to_string(table_size) +
-                            " values, expected " + std::to_string(n * dim));
-    }
-    return n;
-  }
-  if (point_row.size() != n || table_size % dim != 0) {
-    throw InvalidArgument(who + ": point_row has " + std::to_string(point_row.size()) +
-                          " entries for " + std::to_string(n) + " points, " + table + " " +
-                          std::to_string(table_size) + " values (rows of " + std::to_string(dim) +
-                          ")");
-  }
-  const std::size_t rows = table_size / dim;
-  for (std::size_t i = 0; i < n; ++i) {
-    if (point_row[i] < 0 || static_cast<std::size_t>(point_row[i]) >= rows) {
-      throw InvalidArgument(who + ": point_row[" + std::to_string(i) +
-                            "] = " + std::to_string(point_row[i]) + " is not in [0, " +
-                            std::to_string(rows) + ")");
-    }
-  }
-  return rows;
 }
 
 inline std::size_t RowOf(const std::vector<std::int64_t>& point_row, int i) {
@@ -86,8 +59,8 @@ std::vector<ScoredInstance> ExtractStage1Instances(
   if (num_sem == 0) throw InvalidArgument("ExtractStage1Instances: rfs_to_cad is empty");
   CheckSize("offsets", offsets.size(), n);
   CheckSize("cad_label", cad_label.size(), n);
-  const std::size_t rows = CheckRows("ExtractStage1Instances", "semantic_prob",
-                                     semantic_prob.size(), num_sem, n, point_row);
+  const std::size_t rows = nn::CheckPointRows("ExtractStage1Instances", "semantic_prob",
+                                              semantic_prob.size(), num_sem, n, point_row);
   CheckSize("heading_prob", heading_prob.size(), rows * nn::kHeadingBins);
   CheckSize("heading_residual", heading_residual.size(), rows * nn::kHeadingBins);
   for (std::size_t i = 0; i < n; ++i) {
@@ -170,7 +143,8 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   };
   check("offsets", offsets.size(), n);
   check("semantic", semantic.size(), n);
-  CheckRows("VoteSemantics", "semantic_prob", semantic_prob.size(), num_classes, n, point_row);
+  nn::CheckPointRows("VoteSemantics", "semantic_prob", semantic_prob.size(), num_classes, n,
+                     point_row);
   std::vector<bool> votes = is_thing;
   for (int c : config.excluded_classes) {
     if (static_cast<std::size_t>(c) >= num_classes) {

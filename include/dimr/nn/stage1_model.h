@@ -119,6 +119,15 @@ struct Stage1PointRows {
   void CheckShape(const std::string& who, std::size_t points, int classes = kStage1Classes) const;
 };
 
+// The number of rows R of a table of `table_size` floats in rows of `dim` that `points` points
+// index through `point_row` (entries in [0, R)), or `points` when point_row is empty (then the
+// table must hold points x dim floats). Throws dimr::InvalidArgument prefixed by `who`, naming
+// `table` or the first bad entry. The one check of a point -> row map (Stage1PointRows::
+// CheckShape and the pipeline's consumers of per-row tables call it).
+std::size_t CheckPointRows(const std::string& who, const char* table, std::size_t table_size,
+                           std::size_t dim, std::size_t points,
+                           const std::vector<std::int64_t>& point_row);
+
 // Per-point results of one scene (in the input point order); the probability tables per row
 // (Stage1PointRows).
 struct Stage1Output : Stage1PointRows {
