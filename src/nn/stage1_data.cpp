@@ -407,17 +407,10 @@ double FloorBySortedSweep(std::vector<float> z, std::size_t need, double z0, dou
   return floor_z;
 }
 
-// EstimateNetworkFrame on n points (MakeStage1NetworkInput's view without a copy).
-NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
-  if (n == 0) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
-  Eigen::Vector3f lo = points[0], hi = points[0];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!Finite(points[i])) {
-      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
-    }
-    lo = lo.cwiseMin(points[i]);
-    hi = hi.cwiseMax(points[i]);
-  }
+// EstimateNetworkFrame on n >= 1 finite points whose bounding box is [lo, hi] (the callers
+// find it in their own checking loop).
+NetworkFrame FrameInBounds(const Eigen::Vector3f* points, std::size_t n, const Eigen::Vector3f& lo,
+                           const Eigen::Vector3f& hi) {
   const std::size_t need = std::max<std::size_t>(1, static_cast<std::size_t>(std::ceil(0.02 * n)));
   constexpr double kBin = 0.02;
   const double z0 = lo.z();
@@ -505,6 +498,20 @@ NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
                                  static_cast<float>(floor_z));
   frame.floor_z = frame.origin.z();
   return frame;
+}
+
+// EstimateNetworkFrame on n points (a view without a copy).
+NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
+  if (n == 0) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
+  Eigen::Vector3f lo = points[0], hi = points[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!Finite(points[i])) {
+      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
+    }
+    lo = lo.cwiseMin(points[i]);
+    hi = hi.cwiseMax(points[i]);
+  }
+  return FrameInBounds(points, n, lo, hi);
 }
 
 }  // namespace
@@ -925,8 +932,9 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
 }
 
 // ---------------------------------------------------------------- inference input
-Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
-                                          const Stage1InputConfig& input) {
+NetworkFrame WriteStage1NetworkInput(const ScenePoints& scene, const Stage1InputConfig& input,
+                                     std::array<std::int64_t, 3>* extent, float* features,
+                                     std::int32_t* voxel) {
   input.Validate();
   const std::string who = "stage1 input: scene '" + scene.name + "'";
   if (scene.size == 0 || scene.points == nullptr) throw InvalidArgument(who + " has no points");
@@ -934,31 +942,29 @@ Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
     throw InvalidArgument(who + ": the model uses colour but the scene has none");
   }
   const std::size_t n = scene.size;
+  const Eigen::Vector3f* pts = scene.points;
+  // One checking pass that also gives the bounding box (the frame's x-y centre and the lowest
+  // z for the floor search): a NaN fails allFinite before it could enter the min / max.
+  Eigen::Vector3f lo = pts[0], hi = pts[0];
   for (std::size_t i = 0; i < n; ++i) {
-    if (!Finite(scene.points[i])) {
+    if (!Finite(pts[i])) {
       throw InvalidArgument(who + " point " + std::to_string(i) + " is not finite");
     }
     if (input.use_rgb && !Finite(scene.colors[i])) {
       throw InvalidArgument(who + " colour " + std::to_string(i) + " is not finite");
     }
+    lo = lo.cwiseMin(pts[i]);
+    hi = hi.cwiseMax(pts[i]);
   }
-  Stage1NetworkInput r;
-  r.frame = EstimateFrame(scene.points, n);
+  const NetworkFrame frame = FrameInBounds(pts, n, lo, hi);
   const int C = input.feature_channels();
-  r.feature_channels = C;
-  r.features.resize(n * C);
-  r.voxel.resize(n * 4);
-  // The same float arithmetic as MakeStage1Batch: p - origin, then times the scale.
+  // The same float arithmetic as MakeStage1Batch: p - origin, then times the scale. Float
+  // subtraction and multiplication by a positive scale are monotone, so the smallest / largest
+  // (p - origin) * scale over the points are those of the box corners lo / hi: the voxel
+  // minimum is known before the writing pass (one pass over the points, not two).
   const float scale = static_cast<float>(input.scale);
-  Eigen::Vector3f qmin = Eigen::Vector3f::Constant(INFINITY);
-  Eigen::Vector3f qmax = Eigen::Vector3f::Constant(-INFINITY);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = scene.points[i] - r.frame.origin;
-    const Eigen::Vector3f q = p * scale;
-    qmin = qmin.cwiseMin(q);
-    qmax = qmax.cwiseMax(q);
-    for (int c = 0; c < 3; ++c) r.features[C * i + c] = p[c];
-  }
+  const Eigen::Vector3f qmin = (lo - frame.origin) * scale;
+  const Eigen::Vector3f qmax = (hi - frame.origin) * scale;
   for (int c = 0; c < 3; ++c) {
     const double span = std::floor(static_cast<double>(qmax[c]) - qmin[c]) + 1;
     if (!(span <= 65536)) {
@@ -969,19 +975,35 @@ Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
                     (qmax[c] - qmin[c]) / scale, "xyz"[c], span, input.scale);
       throw InvalidArgument(who + buf);
     }
-    r.extent[c] = static_cast<std::int64_t>(span);
+    (*extent)[c] = static_cast<std::int64_t>(span);
   }
+  const double q0[3] = {qmin.x(), qmin.y(), qmin.z()};
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f q = (scene.points[i] - r.frame.origin) * scale;
-    r.voxel[4 * i] = 0;
+    const Eigen::Vector3f p = pts[i] - frame.origin;
+    const Eigen::Vector3f q = p * scale;
+    float* f = features + C * i;
+    std::int32_t* vx = voxel + 4 * i;
+    vx[0] = 0;
     for (int c = 0; c < 3; ++c) {
+      f[c] = p[c];
       // floor of a difference >= 0 (q >= qmin): its truncation, without a libm call.
-      r.voxel[4 * i + 1 + c] = static_cast<std::int32_t>(static_cast<double>(q[c]) - qmin[c]);
+      vx[1 + c] = static_cast<std::int32_t>(static_cast<double>(q[c]) - q0[c]);
     }
     if (input.use_rgb) {
-      for (int c = 0; c < 3; ++c) r.features[C * i + 3 + c] = scene.colors[i][c] - 0.5f;
+      for (int c = 0; c < 3; ++c) f[3 + c] = scene.colors[i][c] - 0.5f;
     }
   }
+  return frame;
+}
+
+Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene,
+                                          const Stage1InputConfig& input) {
+  input.Validate();
+  Stage1NetworkInput r;
+  r.feature_channels = input.feature_channels();
+  r.features.resize(scene.size * r.feature_channels);
+  r.voxel.resize(scene.size * 4);
+  r.frame = WriteStage1NetworkInput(scene, input, &r.extent, r.features.data(), r.voxel.data());
   return r;
 }
 

@@ -7,6 +7,18 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <string>
+
+#if defined(__x86_64__)
+// GCC 12 warns inside its own AVX-512 headers (the unused source operand of an unmasked
+// extract / reduce is _mm512_undefined_*): a known false positive, silenced for the header only.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <immintrin.h>
+#pragma GCC diagnostic pop
+#endif
+
+#include "dimr/core/error.h"
 
 namespace dimr::nn::stage1_heads {
 namespace {
@@ -104,25 +116,240 @@ inline int SoftmaxRow(float* x, int dim) {
   return 0;
 }
 
+#if defined(__x86_64__)
+// The same softmax on 8 (AVX2) or 16 (AVX-512) lanes for rows of at most 32 floats (the 25
+// semantic and 12 bin logits of the shipped model): masked loads and stores instead of the
+// 4-lane tail copies, the exp of ExpNonPositive operation by operation (no FMA: this file is
+// built with -ffp-contract=off), and the 4-lane sum order kept, so the three kernels give the
+// same bits: the 4-float groups are added in row order (the groups past the row hold exact
+// zeros, and s + 0 = s), then (s0 + s1) + (s2 + s3). The maximum and the argmax do not depend
+// on the order (max is exact; a NaN row is NaN in every lane whatever max returned).
+__attribute__((target("avx512f"))) inline __m512 Exp512(__m512 x) {
+  const __m512 lo = _mm512_set1_ps(-87.3f);
+  const __mmask16 tiny = _mm512_cmp_ps_mask(x, lo, _CMP_LT_OQ);
+  const __m512 xc = _mm512_mask_blend_ps(tiny, x, lo);
+  const __m512 magic = _mm512_set1_ps(12582912.0f);
+  const __m512 n = _mm512_sub_ps(
+      _mm512_add_ps(_mm512_mul_ps(xc, _mm512_set1_ps(1.44269504088896341f)), magic), magic);
+  __m512 r = _mm512_sub_ps(xc, _mm512_mul_ps(n, _mm512_set1_ps(0.693359375f)));
+  r = _mm512_sub_ps(r, _mm512_mul_ps(n, _mm512_set1_ps(-2.12194440e-4f)));
+  __m512 p = _mm512_set1_ps(1.9875691500e-4f);
+  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(1.3981999507e-3f));
+  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(8.3334519073e-3f));
+  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(4.1665795894e-2f));
+  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(1.6666665459e-1f));
+  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(5.0000001201e-1f));
+  p = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(p, _mm512_mul_ps(r, r)), r), _mm512_set1_ps(1.0f));
+  const __m512i bits =
+      _mm512_slli_epi32(_mm512_add_epi32(_mm512_cvttps_epi32(n), _mm512_set1_epi32(127)), 23);
+  const __m512 e = _mm512_mul_ps(p, _mm512_castsi512_ps(bits));
+  return _mm512_mask_blend_ps(tiny, e, _mm512_setzero_ps());
+}
+
+__attribute__((target("avx512f"))) inline int SoftmaxRow512(float* x, int dim) {  // dim <= 32
+  const int d0 = dim < 16 ? dim : 16;
+  const __mmask16 m0 = static_cast<__mmask16>((1u << d0) - 1);
+  const __mmask16 m1 = static_cast<__mmask16>((1u << (dim - d0)) - 1);
+  const __m512 ninf = _mm512_set1_ps(-INFINITY);
+  const __m512 a = _mm512_mask_loadu_ps(ninf, m0, x);
+  const __m512 b = _mm512_mask_loadu_ps(ninf, m1, x + 16);
+  const __m512 shift = _mm512_set1_ps(_mm512_reduce_max_ps(_mm512_max_ps(a, b)));
+  const __m512 ea = Exp512(_mm512_sub_ps(a, shift));
+  __m128 s = _mm512_castps512_ps128(ea);
+  s = _mm_add_ps(s, _mm512_extractf32x4_ps(ea, 1));
+  s = _mm_add_ps(s, _mm512_extractf32x4_ps(ea, 2));
+  s = _mm_add_ps(s, _mm512_extractf32x4_ps(ea, 3));
+  __m512 eb = _mm512_setzero_ps();
+  if (dim > 16) {
+    eb = Exp512(_mm512_sub_ps(b, shift));
+    s = _mm_add_ps(s, _mm512_castps512_ps128(eb));
+    s = _mm_add_ps(s, _mm512_extractf32x4_ps(eb, 1));
+    s = _mm_add_ps(s, _mm512_extractf32x4_ps(eb, 2));
+    s = _mm_add_ps(s, _mm512_extractf32x4_ps(eb, 3));
+  }
+  alignas(16) float lane[4];
+  _mm_store_ps(lane, s);
+  const __m512 inv = _mm512_set1_ps(1.0f / ((lane[0] + lane[1]) + (lane[2] + lane[3])));
+  const __m512 pa = _mm512_mul_ps(ea, inv);
+  const __m512 pb = _mm512_mul_ps(eb, inv);
+  _mm512_mask_storeu_ps(x, m0, pa);
+  _mm512_mask_storeu_ps(x + 16, m1, pb);
+  const __m512 best = _mm512_set1_ps(_mm512_reduce_max_ps(_mm512_max_ps(pa, pb)));
+  const unsigned hit =
+      static_cast<unsigned>(_mm512_mask_cmp_ps_mask(m0, pa, best, _CMP_EQ_OQ)) |
+      (static_cast<unsigned>(_mm512_mask_cmp_ps_mask(m1, pb, best, _CMP_EQ_OQ)) << 16);
+  return hit ? __builtin_ctz(hit) : 0;
+}
+
+__attribute__((target("avx2"))) inline __m256 Exp256(__m256 x) {
+  const __m256 lo = _mm256_set1_ps(-87.3f);
+  const __m256 tiny = _mm256_cmp_ps(x, lo, _CMP_LT_OQ);
+  const __m256 xc = _mm256_blendv_ps(x, lo, tiny);
+  const __m256 magic = _mm256_set1_ps(12582912.0f);
+  const __m256 n = _mm256_sub_ps(
+      _mm256_add_ps(_mm256_mul_ps(xc, _mm256_set1_ps(1.44269504088896341f)), magic), magic);
+  __m256 r = _mm256_sub_ps(xc, _mm256_mul_ps(n, _mm256_set1_ps(0.693359375f)));
+  r = _mm256_sub_ps(r, _mm256_mul_ps(n, _mm256_set1_ps(-2.12194440e-4f)));
+  __m256 p = _mm256_set1_ps(1.9875691500e-4f);
+  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.3981999507e-3f));
+  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(8.3334519073e-3f));
+  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(4.1665795894e-2f));
+  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.6666665459e-1f));
+  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(5.0000001201e-1f));
+  p = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(p, _mm256_mul_ps(r, r)), r), _mm256_set1_ps(1.0f));
+  const __m256i bits =
+      _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvttps_epi32(n), _mm256_set1_epi32(127)), 23);
+  const __m256 e = _mm256_mul_ps(p, _mm256_castsi256_ps(bits));
+  return _mm256_andnot_ps(tiny, e);  // 0 where tiny
+}
+
+__attribute__((target("avx2"))) inline float HorizontalMax256(__m256 v) {
+  __m128 m = _mm_max_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  m = _mm_max_ps(m, _mm_movehl_ps(m, m));
+  m = _mm_max_ss(m, _mm_shuffle_ps(m, m, 1));
+  return _mm_cvtss_f32(m);
+}
+
+__attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  // dim <= 32
+  const int nv = (dim + 7) / 8;
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 ninf = _mm256_set1_ps(-INFINITY);
+  __m256i mask[4];
+  __m256 v[4];
+  __m256 vmax = ninf;
+  for (int q = 0; q < nv; ++q) {
+    mask[q] = _mm256_cmpgt_epi32(_mm256_set1_epi32(dim - 8 * q), iota);
+    v[q] = _mm256_blendv_ps(ninf, _mm256_maskload_ps(x + 8 * q, mask[q]),
+                            _mm256_castsi256_ps(mask[q]));
+    vmax = _mm256_max_ps(vmax, v[q]);
+  }
+  const __m256 shift = _mm256_set1_ps(HorizontalMax256(vmax));
+  __m128 s = _mm_setzero_ps();
+  for (int q = 0; q < nv; ++q) {
+    v[q] = Exp256(_mm256_sub_ps(v[q], shift));
+    s = q == 0 ? _mm256_castps256_ps128(v[q]) : _mm_add_ps(s, _mm256_castps256_ps128(v[q]));
+    s = _mm_add_ps(s, _mm256_extractf128_ps(v[q], 1));
+  }
+  alignas(16) float lane[4];
+  _mm_store_ps(lane, s);
+  const __m256 inv = _mm256_set1_ps(1.0f / ((lane[0] + lane[1]) + (lane[2] + lane[3])));
+  __m256 pmax = _mm256_setzero_ps();
+  for (int q = 0; q < nv; ++q) {
+    v[q] = _mm256_mul_ps(v[q], inv);
+    _mm256_maskstore_ps(x + 8 * q, mask[q], v[q]);
+    pmax = _mm256_max_ps(pmax, v[q]);
+  }
+  const __m256 best = _mm256_set1_ps(HorizontalMax256(pmax));
+  unsigned hit = 0;
+  for (int q = 0; q < nv; ++q) {
+    const __m256 eq =
+        _mm256_and_ps(_mm256_cmp_ps(v[q], best, _CMP_EQ_OQ), _mm256_castsi256_ps(mask[q]));
+    hit |= static_cast<unsigned>(_mm256_movemask_ps(eq)) << (8 * q);
+  }
+  return hit ? __builtin_ctz(hit) : 0;
+}
+#endif
+
+// The row kernel of an ISA (dim <= 32 for the wide ones; longer rows take the 4-lane one).
+using SoftmaxRowFn = int (*)(float*, int);
+
+#if defined(__x86_64__)
+__attribute__((target("avx512f"))) int Row512(float* x, int dim) {
+  return dim <= 32 ? SoftmaxRow512(x, dim) : SoftmaxRow(x, dim);
+}
+__attribute__((target("avx2"))) int Row256(float* x, int dim) {
+  return dim <= 32 ? SoftmaxRow256(x, dim) : SoftmaxRow(x, dim);
+}
+#endif
+int Row128(float* x, int dim) { return SoftmaxRow(x, dim); }
+
+bool IsaSupported(SoftmaxIsa isa) {
+#if defined(__x86_64__)
+  switch (isa) {
+    case SoftmaxIsa::kAvx512:
+      return __builtin_cpu_supports("avx512f");
+    case SoftmaxIsa::kAvx2:
+      return __builtin_cpu_supports("avx2");
+    default:
+      return true;
+  }
+#else
+  return isa == SoftmaxIsa::kGeneric || isa == SoftmaxIsa::kAuto;
+#endif
+}
+
+SoftmaxIsa Resolve(SoftmaxIsa isa) {
+  if (isa != SoftmaxIsa::kAuto) {
+    if (!IsaSupported(isa)) {
+      throw InvalidArgument(std::string("stage-1 softmax: this CPU cannot run the ") +
+                            SoftmaxIsaName(isa) + " kernel");
+    }
+    return isa;
+  }
+  static const SoftmaxIsa best = IsaSupported(SoftmaxIsa::kAvx512) ? SoftmaxIsa::kAvx512
+                                 : IsaSupported(SoftmaxIsa::kAvx2) ? SoftmaxIsa::kAvx2
+                                                                   : SoftmaxIsa::kGeneric;
+  return best;
+}
+
+SoftmaxRowFn RowFor(SoftmaxIsa isa) {
+  switch (Resolve(isa)) {
+#if defined(__x86_64__)
+    case SoftmaxIsa::kAvx512:
+      return &Row512;
+    case SoftmaxIsa::kAvx2:
+      return &Row256;
+#endif
+    default:
+      return &Row128;
+  }
+}
+
 }  // namespace
 
-void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax) {
+const char* SoftmaxIsaName(SoftmaxIsa isa) {
+  switch (isa) {
+    case SoftmaxIsa::kAvx512:
+      return "avx512";
+    case SoftmaxIsa::kAvx2:
+      return "avx2";
+    case SoftmaxIsa::kGeneric:
+      return "generic";
+    default:
+      return "auto";
+  }
+}
+
+std::vector<SoftmaxIsa> SupportedSoftmaxIsas() {
+  std::vector<SoftmaxIsa> out;
+  for (SoftmaxIsa isa : {SoftmaxIsa::kGeneric, SoftmaxIsa::kAvx2, SoftmaxIsa::kAvx512}) {
+    if (IsaSupported(isa)) out.push_back(isa);
+  }
+  return out;
+}
+
+SoftmaxIsa ResolveSoftmaxIsa(SoftmaxIsa isa) { return Resolve(isa); }
+
+void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax,
+                 SoftmaxIsa isa) {
+  const SoftmaxRowFn row = RowFor(isa);
   at::parallel_for(0, rows, 2048, [&](std::int64_t begin, std::int64_t end) {
     for (std::int64_t v = begin; v < end; ++v) {
-      const int best = SoftmaxRow(x + v * stride, dim);
+      const int best = row(x + v * stride, dim);
       if (argmax != nullptr) argmax[v] = best;
     }
   });
 }
 
-void SoftmaxInPlace(const VoxelHeads& h, int* argmax) {
+void SoftmaxInPlace(const VoxelHeads& h, int* argmax, SoftmaxIsa isa) {
   // Both rows of a voxel in one loop (the same per-row arithmetic as SoftmaxRows): one sweep
   // over the voxels, and the two rows' exp chains are independent work for the core to overlap.
+  const SoftmaxRowFn row = RowFor(isa);
   at::parallel_for(0, h.voxels, 2048, [&](std::int64_t begin, std::int64_t end) {
     for (std::int64_t v = begin; v < end; ++v) {
-      const int best = SoftmaxRow(h.prob + v * h.classes, h.classes);
+      const int best = row(h.prob + v * h.classes, h.classes);
       if (argmax != nullptr) argmax[v] = best;
-      SoftmaxRow(h.heading + v * 2 * kHeadingBins, kHeadingBins);
+      row(h.heading + v * 2 * kHeadingBins, kHeadingBins);
     }
   });
 }

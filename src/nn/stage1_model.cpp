@@ -294,6 +294,24 @@ std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples
 
 std::string SparseKernelsInUse() { return SparseKernelPathName(ResolveSparseKernelPath()); }
 
+namespace {
+// The heads' softmax kernel follows the sparse-kernel path in force (DIMR_SPARSE_KERNELS or
+// SetSparseKernelPath), so that forcing avx2 on an AVX-512 machine times an AVX2 machine's
+// whole pass; the GEMM fallback takes the 4-lane kernel. All give the same bits.
+stage1_heads::SoftmaxIsa SoftmaxIsaInUse() {
+  switch (ResolveSparseKernelPath()) {
+    case SparseKernelPath::kAvx512:
+      return stage1_heads::SoftmaxIsa::kAvx512;
+    case SparseKernelPath::kAvx2:
+      return stage1_heads::SoftmaxIsa::kAvx2;
+    default:
+      return stage1_heads::SoftmaxIsa::kGeneric;
+  }
+}
+}  // namespace
+
+std::string Stage1SoftmaxInUse() { return stage1_heads::SoftmaxIsaName(SoftmaxIsaInUse()); }
+
 void SetIntraOpThreads(int threads) {
   if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
   torch::set_num_threads(threads);
@@ -338,7 +356,7 @@ struct Stage1Model::Impl {
       // The semantic and heading-bin softmax in place (stage1_heads: one pass over the rows,
       // no slice copies; ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
       pass.argmax.resize(static_cast<std::size_t>(pass.h.semantic.size(0)));
-      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data());
+      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data(), SoftmaxIsaInUse());
       pass.point_to_voxel = cpu(v.map.point_to_voxel.to(torch::kInt64));
       pass.voxel_offsets = cpu(v.map.voxel_offsets.to(torch::kInt64));
       pass.voxel_points = cpu(v.map.voxel_points.to(torch::kInt64));
@@ -365,13 +383,16 @@ struct Stage1Model::Impl {
   // point's outputs are its voxel's row: the same numbers as heads on the gathered point
   // features, for ~3-5x fewer rows at 5 cm (a 100k-point room has ~25k voxels).
   Pass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
-    const Stage1NetworkInput in = MakeStage1NetworkInput(scene, config.input);
-    *frame = in.frame;
+    // MakeStage1NetworkInput's numbers written straight into uninitialised tensors (no zero
+    // fill, no copy).
     const int64_t n = static_cast<int64_t>(scene.size);
-    // Views of `in`, which outlives Run (Voxelize keeps copies of what it needs).
-    return Run(View(in.voxel, torch::kInt32, {n, 4}),
-               View(in.features, torch::kFloat32, {n, in.feature_channels}).to(device), 1,
-               /*voxel_heads=*/true, timing);
+    if (n == 0) throw InvalidArgument("stage1 input: scene '" + scene.name + "' has no points");
+    torch::Tensor voxel = torch::empty({n, 4}, torch::kInt32);
+    torch::Tensor features = torch::empty({n, config.input.feature_channels()}, torch::kFloat32);
+    std::array<std::int64_t, 3> extent;
+    *frame = WriteStage1NetworkInput(scene, config.input, &extent, features.data_ptr<float>(),
+                                     voxel.data_ptr<std::int32_t>());
+    return Run(voxel, features.to(device), 1, /*voxel_heads=*/true, timing);
   }
 
   // The same for the scene moved by p -> centre + R(theta) (sign * (p - centre)) in x-y (z
@@ -450,12 +471,6 @@ struct Stage1Model::Impl {
     h.voxels = p.h.semantic.size(0);
     h.classes = static_cast<int>(p.h.semantic.size(1));
     return h;
-  }
-
-  template <typename T>
-  static torch::Tensor View(const std::vector<T>& v, torch::Dtype dtype,
-                            std::vector<int64_t> shape) {
-    return torch::from_blob(const_cast<T*>(v.data()), shape, torch::TensorOptions().dtype(dtype));
   }
 };
 

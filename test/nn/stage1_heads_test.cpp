@@ -7,6 +7,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -216,6 +219,70 @@ TEST(Stage1Heads, SoftmaxMatchesDoublePrecision) {
   std::vector<float> bad{0.5f, std::nanf(""), 1.0f, 2.0f, 0.0f};
   stage1_heads::SoftmaxRows(bad.data(), 1, 5, 5);
   for (float v : bad) EXPECT_TRUE(std::isnan(v));
+}
+
+// Every softmax kernel this CPU runs (4-lane, AVX2, AVX-512) gives the 4-lane kernel's bits,
+// row lengths 1 ... 33 (the wide kernels take rows <= 32; 33 falls back), strided rows, ties,
+// extreme and NaN rows; a kernel the CPU cannot run is refused by name.
+TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
+  const auto isas = stage1_heads::SupportedSoftmaxIsas();
+  ASSERT_FALSE(isas.empty());
+  ASSERT_EQ(isas.front(), stage1_heads::SoftmaxIsa::kGeneric);
+  std::printf("softmax kernels on this CPU:");
+  for (auto isa : isas) std::printf(" %s", stage1_heads::SoftmaxIsaName(isa));
+  std::printf(" (auto: %s)\n", stage1_heads::SoftmaxIsaName(stage1_heads::ResolveSoftmaxIsa(
+                                   stage1_heads::SoftmaxIsa::kAuto)));
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> logit(-30, 30);
+  for (int dim = 1; dim <= 33; ++dim) {
+    const int stride = dim + 3;
+    const int rows = 200;
+    std::vector<float> x(rows * stride);
+    for (auto& v : x) v = logit(rng);
+    for (int c = 0; c < dim; ++c) {
+      x[0 * stride + c] = 1.5f;                                 // all tied: argmax 0
+      x[1 * stride + c] = c % 3 == 1 ? 7.0f : -2.0f;            // tied maxima
+      x[2 * stride + c] = c == dim - 1 ? 0.0f : -INFINITY;      // one finite entry
+      x[3 * stride + c] = c == 0 ? 90.0f : -90.0f;              // underflow to 0
+      x[4 * stride + c] = c == dim / 2 ? std::nanf("") : 1.0f;  // NaN row
+    }
+    std::vector<float> want = x;
+    std::vector<int> want_arg(rows, -1);
+    stage1_heads::SoftmaxRows(want.data(), rows, dim, stride, want_arg.data(),
+                              stage1_heads::SoftmaxIsa::kGeneric);
+    for (auto isa : isas) {
+      std::vector<float> got = x;
+      std::vector<int> got_arg(rows, -1);
+      stage1_heads::SoftmaxRows(got.data(), rows, dim, stride, got_arg.data(), isa);
+      for (int v = 0; v < rows; ++v) {
+        ASSERT_EQ(got_arg[v], want_arg[v])
+            << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim << " row " << v;
+        for (int c = 0; c < stride; ++c) {
+          const float a = got[v * stride + c], b = want[v * stride + c];
+          if (std::isnan(b)) {
+            ASSERT_TRUE(std::isnan(a)) << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim;
+            continue;
+          }
+          std::uint32_t ua, ub;
+          std::memcpy(&ua, &a, 4);
+          std::memcpy(&ub, &b, 4);
+          ASSERT_EQ(ua, ub) << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim << " row " << v
+                            << " col " << c;
+        }
+      }
+      if (dim > 1) {
+        ASSERT_EQ(got_arg[1], 1);
+      }
+      ASSERT_EQ(got_arg[2], dim - 1);
+      ASSERT_EQ(got[3 * stride], 1.0f);
+      for (int c = 0; c < dim; ++c) ASSERT_TRUE(std::isnan(got[4 * stride + c]));
+    }
+  }
+  for (auto isa : {stage1_heads::SoftmaxIsa::kAvx2, stage1_heads::SoftmaxIsa::kAvx512}) {
+    if (std::find(isas.begin(), isas.end(), isa) != isas.end()) continue;
+    float row[3] = {0, 1, 2};
+    EXPECT_THROW(stage1_heads::SoftmaxRows(row, 1, 3, 3, nullptr, isa), InvalidArgument);
+  }
 }
 
 // ---------------------------------------------------------------- network frame

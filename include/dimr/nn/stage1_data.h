@@ -206,6 +206,12 @@ struct Stage1NetworkInput {
 // index), missing colours when input.use_rgb, or a cloud spanning more than 65535 voxels along
 // an axis (e.g. a cloud in millimetres: the message says so).
 Stage1NetworkInput MakeStage1NetworkInput(const ScenePoints& scene, const Stage1InputConfig& input);
+// The same written into the caller's buffers (features: scene.size x input.feature_channels()
+// floats, voxel: scene.size x 4; every element is written, so they may be uninitialised);
+// returns the frame and sets *extent. The same checks and messages.
+NetworkFrame WriteStage1NetworkInput(const ScenePoints& scene, const Stage1InputConfig& input,
+                                     std::array<std::int64_t, 3>* extent, float* features,
+                                     std::int32_t* voxel);
 
 // Shuffled epochs of batches built by `threads` background threads (prefetching `prefetch`
 // batches). Deterministic: batch k of epoch e depends only on (seed, e, k), not on threads.
