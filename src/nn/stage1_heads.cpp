@@ -263,41 +263,41 @@ __attribute__((target("avx2"))) int Row256(float* x, int dim) {
 #endif
 int Row128(float* x, int dim) { return SoftmaxRow(x, dim); }
 
-bool IsaSupported(SoftmaxIsa isa) {
+bool IsaSupported(HeadsIsa isa) {
 #if defined(__x86_64__)
   switch (isa) {
-    case SoftmaxIsa::kAvx512:
+    case HeadsIsa::kAvx512:
       return __builtin_cpu_supports("avx512f");
-    case SoftmaxIsa::kAvx2:
+    case HeadsIsa::kAvx2:
       return __builtin_cpu_supports("avx2");
     default:
       return true;
   }
 #else
-  return isa == SoftmaxIsa::kGeneric || isa == SoftmaxIsa::kAuto;
+  return isa == HeadsIsa::kGeneric || isa == HeadsIsa::kAuto;
 #endif
 }
 
-SoftmaxIsa Resolve(SoftmaxIsa isa) {
-  if (isa != SoftmaxIsa::kAuto) {
+HeadsIsa Resolve(HeadsIsa isa) {
+  if (isa != HeadsIsa::kAuto) {
     if (!IsaSupported(isa)) {
-      throw InvalidArgument(std::string("stage-1 softmax: this CPU cannot run the ") +
-                            SoftmaxIsaName(isa) + " kernel");
+      throw InvalidArgument(std::string("stage-1 heads: this CPU cannot run the ") +
+                            HeadsIsaName(isa) + " kernel");
     }
     return isa;
   }
-  static const SoftmaxIsa best = IsaSupported(SoftmaxIsa::kAvx512) ? SoftmaxIsa::kAvx512
-                                 : IsaSupported(SoftmaxIsa::kAvx2) ? SoftmaxIsa::kAvx2
-                                                                   : SoftmaxIsa::kGeneric;
+  static const HeadsIsa best = IsaSupported(HeadsIsa::kAvx512) ? HeadsIsa::kAvx512
+                               : IsaSupported(HeadsIsa::kAvx2) ? HeadsIsa::kAvx2
+                                                               : HeadsIsa::kGeneric;
   return best;
 }
 
-SoftmaxRowFn RowFor(SoftmaxIsa isa) {
+SoftmaxRowFn RowFor(HeadsIsa isa) {
   switch (Resolve(isa)) {
 #if defined(__x86_64__)
-    case SoftmaxIsa::kAvx512:
+    case HeadsIsa::kAvx512:
       return &Row512;
-    case SoftmaxIsa::kAvx2:
+    case HeadsIsa::kAvx2:
       return &Row256;
 #endif
     default:
@@ -307,31 +307,31 @@ SoftmaxRowFn RowFor(SoftmaxIsa isa) {
 
 }  // namespace
 
-const char* SoftmaxIsaName(SoftmaxIsa isa) {
+const char* HeadsIsaName(HeadsIsa isa) {
   switch (isa) {
-    case SoftmaxIsa::kAvx512:
+    case HeadsIsa::kAvx512:
       return "avx512";
-    case SoftmaxIsa::kAvx2:
+    case HeadsIsa::kAvx2:
       return "avx2";
-    case SoftmaxIsa::kGeneric:
+    case HeadsIsa::kGeneric:
       return "generic";
     default:
       return "auto";
   }
 }
 
-std::vector<SoftmaxIsa> SupportedSoftmaxIsas() {
-  std::vector<SoftmaxIsa> out;
-  for (SoftmaxIsa isa : {SoftmaxIsa::kGeneric, SoftmaxIsa::kAvx2, SoftmaxIsa::kAvx512}) {
+std::vector<HeadsIsa> SupportedHeadsIsas() {
+  std::vector<HeadsIsa> out;
+  for (HeadsIsa isa : {HeadsIsa::kGeneric, HeadsIsa::kAvx2, HeadsIsa::kAvx512}) {
     if (IsaSupported(isa)) out.push_back(isa);
   }
   return out;
 }
 
-SoftmaxIsa ResolveSoftmaxIsa(SoftmaxIsa isa) { return Resolve(isa); }
+HeadsIsa ResolveHeadsIsa(HeadsIsa isa) { return Resolve(isa); }
 
 void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax,
-                 SoftmaxIsa isa) {
+                 HeadsIsa isa) {
   const SoftmaxRowFn row = RowFor(isa);
   at::parallel_for(0, rows, 2048, [&](std::int64_t begin, std::int64_t end) {
     for (std::int64_t v = begin; v < end; ++v) {
@@ -341,7 +341,7 @@ void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int*
   });
 }
 
-void SoftmaxInPlace(const VoxelHeads& h, int* argmax, SoftmaxIsa isa) {
+void SoftmaxInPlace(const VoxelHeads& h, int* argmax, HeadsIsa isa) {
   // Both rows of a voxel in one loop (the same per-row arithmetic as SoftmaxRows): one sweep
   // over the voxels, and the two rows' exp chains are independent work for the core to overlap.
   const SoftmaxRowFn row = RowFor(isa);
@@ -467,15 +467,191 @@ inline void MeanOfRows(const float* const* src, int passes, int vectors, F4 inv,
   }
 }
 
+// The mean of a point's rows src[0 .. passes) (L.stride floats each) into `mean` (64-byte
+// aligned, L.stride floats), its semantic part also into `semantic` (L.classes floats);
+// returns the first index of the largest semantic probability (std::max_element's answer).
+using MeanFn = int (*)(const float* const* src, int passes, const RowLayout& L, float inv,
+                       float* mean, float* semantic);
+
+// The first index of the largest of x[0 .. n): `x[c] > x[best]` as std::max_element (a NaN
+// never wins; a NaN first element stays the answer), with the best value in a register
+// instead of a reload of x[best] on the compare chain.
+inline int FirstMax(const float* x, int n) {
+  int best = 0;
+  float bv = x[0];
+  for (int c = 1; c < n; ++c) {
+    if (x[c] > bv) {
+      bv = x[c];
+      best = c;
+    }
+  }
+  return best;
+}
+
 template <int V>
+int MeanGeneric(const float* const* src, int passes, const RowLayout& L, float inv, float* mean,
+                float* semantic) {
+  MeanOfRows<V>(src, passes, L.stride / 4, F4{inv, inv, inv, inv}, mean);
+  std::memcpy(semantic, mean, sizeof(float) * L.classes);
+  return FirstMax(mean, L.classes);
+}
+
+#if defined(__x86_64__)
+// The same mean in 16-lane (AVX-512, NV <= 4 vectors: rows <= 64 floats) or 8-lane (AVX2,
+// NV <= 8) vectors: every lane is the 4-lane kernel's lane (the same adds in pass order, then
+// the same multiply), so the bits are the same; the accumulators stay in registers (NV is
+// known at compile time), the last vector is loaded under a mask (no read past the row), and
+// the semantic argmax is a vector max and a compare (a NaN row takes FirstMax).
+template <int NV>
+__attribute__((target("avx512f"))) int Mean512(const float* const* src, int passes,
+                                               const RowLayout& L, float inv, float* mean,
+                                               float* semantic) {
+  const int tail = L.stride - 16 * (NV - 1);  // 4 ... 16
+  const __mmask16 mt = static_cast<__mmask16>((1u << tail) - 1);
+  __m512 acc[NV];
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
+    acc[q] =
+        q < NV - 1 ? _mm512_loadu_ps(src[0] + 16 * q) : _mm512_maskz_loadu_ps(mt, src[0] + 16 * q);
+  }
+  for (int k = 1; k < passes; ++k) {
+    const float* r = src[k];
+#pragma GCC unroll 4
+    for (int q = 0; q < NV; ++q) {
+      acc[q] = _mm512_add_ps(
+          acc[q], q < NV - 1 ? _mm512_loadu_ps(r + 16 * q) : _mm512_maskz_loadu_ps(mt, r + 16 * q));
+    }
+  }
+  const __m512 scale = _mm512_set1_ps(inv);
+  __m512 top = _mm512_set1_ps(-INFINITY);
+  unsigned nan = 0;
+  __mmask16 in_class[NV];
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
+    acc[q] = _mm512_mul_ps(acc[q], scale);
+    _mm512_store_ps(mean + 16 * q, acc[q]);
+    const int left = L.classes - 16 * q;
+    in_class[q] = static_cast<__mmask16>(left >= 16 ? 0xFFFFu : left > 0 ? (1u << left) - 1 : 0u);
+    _mm512_mask_storeu_ps(semantic + 16 * q, in_class[q], acc[q]);
+    top = _mm512_mask_max_ps(top, in_class[q], top, acc[q]);
+    nan |= _mm512_mask_cmp_ps_mask(in_class[q], acc[q], acc[q], _CMP_UNORD_Q);
+  }
+  if (nan) return FirstMax(mean, L.classes);
+  const __m512 best = _mm512_set1_ps(_mm512_reduce_max_ps(top));
+  std::uint64_t hit = 0;
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
+    hit |=
+        static_cast<std::uint64_t>(_mm512_mask_cmp_ps_mask(in_class[q], acc[q], best, _CMP_EQ_OQ))
+        << (16 * q);
+  }
+  return hit ? __builtin_ctzll(hit) : 0;
+}
+
+template <int NV>
+__attribute__((target("avx2"))) int Mean256(const float* const* src, int passes, const RowLayout& L,
+                                            float inv, float* mean, float* semantic) {
+  const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256i mt = _mm256_cmpgt_epi32(_mm256_set1_epi32(L.stride - 8 * (NV - 1)), iota);
+  __m256 acc[NV];
+#pragma GCC unroll 8
+  for (int q = 0; q < NV; ++q) {
+    acc[q] = q < NV - 1 ? _mm256_loadu_ps(src[0] + 8 * q) : _mm256_maskload_ps(src[0] + 8 * q, mt);
+  }
+  for (int k = 1; k < passes; ++k) {
+    const float* r = src[k];
+#pragma GCC unroll 8
+    for (int q = 0; q < NV; ++q) {
+      acc[q] = _mm256_add_ps(
+          acc[q], q < NV - 1 ? _mm256_loadu_ps(r + 8 * q) : _mm256_maskload_ps(r + 8 * q, mt));
+    }
+  }
+  const __m256 scale = _mm256_set1_ps(inv);
+  const __m256 ninf = _mm256_set1_ps(-INFINITY);
+  __m256 top = ninf;
+  int nan = 0;
+  __m256 in_class[NV];
+#pragma GCC unroll 8
+  for (int q = 0; q < NV; ++q) {
+    acc[q] = _mm256_mul_ps(acc[q], scale);
+    _mm256_store_ps(mean + 8 * q, acc[q]);
+    const __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(L.classes - 8 * q), iota);
+    in_class[q] = _mm256_castsi256_ps(m);
+    _mm256_maskstore_ps(semantic + 8 * q, m, acc[q]);
+    top = _mm256_max_ps(top, _mm256_blendv_ps(ninf, acc[q], in_class[q]));
+    nan |=
+        _mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(acc[q], acc[q], _CMP_UNORD_Q), in_class[q]));
+  }
+  if (nan) return FirstMax(mean, L.classes);
+  __m128 t = _mm_max_ps(_mm256_castps256_ps128(top), _mm256_extractf128_ps(top, 1));
+  t = _mm_max_ps(t, _mm_movehl_ps(t, t));
+  t = _mm_max_ss(t, _mm_shuffle_ps(t, t, 1));
+  const __m256 best = _mm256_set1_ps(_mm_cvtss_f32(t));
+  std::uint64_t hit = 0;
+#pragma GCC unroll 8
+  for (int q = 0; q < NV; ++q) {
+    const __m256 eq = _mm256_and_ps(_mm256_cmp_ps(acc[q], best, _CMP_EQ_OQ), in_class[q]);
+    hit |= static_cast<std::uint64_t>(_mm256_movemask_ps(eq)) << (8 * q);
+  }
+  return hit ? __builtin_ctzll(hit) : 0;
+}
+#endif
+
+// The mean kernel for this row length on `isa` (rows of <= 64 floats on the wide ISAs).
+MeanFn MeanFor(HeadsIsa isa, const RowLayout& L) {
+  const int stride = L.stride;
+#if defined(__x86_64__)
+  if (stride <= 64) {
+    switch (Resolve(isa)) {
+      case HeadsIsa::kAvx512:
+        switch ((stride + 15) / 16) {
+          case 1:
+            return &Mean512<1>;
+          case 2:
+            return &Mean512<2>;
+          case 3:
+            return &Mean512<3>;
+          default:
+            return &Mean512<4>;
+        }
+      case HeadsIsa::kAvx2:
+        switch ((stride + 7) / 8) {
+          case 1:
+            return &Mean256<1>;
+          case 2:
+            return &Mean256<2>;
+          case 3:
+            return &Mean256<3>;
+          case 4:
+            return &Mean256<4>;
+          case 5:
+            return &Mean256<5>;
+          case 6:
+            return &Mean256<6>;
+          case 7:
+            return &Mean256<7>;
+          default:
+            return &Mean256<8>;
+        }
+      default:
+        break;
+    }
+  } else {
+    Resolve(isa);  // an unsupported request is still refused
+  }
+#else
+  Resolve(isa);
+#endif
+  return stride == 52 ? &MeanGeneric<13> : &MeanGeneric<0>;  // 52: the 25 RFS classes
+}
+
 void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
                   const std::int64_t* pts, const std::vector<const float*>& table,
-                  const std::vector<const std::int32_t*>& index, const RowLayout& L,
+                  const std::vector<const std::int32_t*>& index, const RowLayout& L, MeanFn mean_of,
                   Stage1Output* out) {
   const int passes = static_cast<int>(table.size());
-  const int nc = L.classes, stride = L.stride, vectors = L.stride / 4;
-  const float inv_scalar = 1.0f / static_cast<float>(passes);
-  const F4 inv = {inv_scalar, inv_scalar, inv_scalar, inv_scalar};
+  const int nc = L.classes, stride = L.stride;
+  const float inv = 1.0f / static_cast<float>(passes);
   float* sp = out->semantic_prob.data();
   float* hp = out->heading_prob.data();
   float* hr = out->heading_residual.data();
@@ -487,8 +663,13 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
   constexpr std::int64_t ahead = 8;
   const std::int64_t j_end = off[end];
   std::vector<const float*> src(passes);
-  std::vector<float> buffer(stride);
-  float* mean = buffer.data();
+  alignas(64) float mean[64];
+  std::vector<float> wide;  // rows longer than 64 floats (the generic kernel)
+  float* m = mean;
+  if (stride > 64) {
+    wide.resize(stride);
+    m = wide.data();
+  }
   for (std::int64_t v = begin; v < end; ++v) {
     const std::int64_t ja = std::min(off[v] + ahead, j_end);
     const std::int64_t jb = std::min(off[v + 1] + ahead, j_end);
@@ -511,20 +692,11 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
       for (int k = 1; k < passes; ++k) {
         src[k] = table[k] + static_cast<std::int64_t>(index[k][j]) * stride;
       }
-      MeanOfRows<V>(src.data(), passes, vectors, inv, mean);
       const std::int64_t i = pts[j];
-      float* s = sp + i * nc;
-      int best = 0;
-      for (int c = 0; c < nc; ++c) {
-        s[c] = mean[c];
-        if (mean[c] > mean[best]) best = c;  // the first maximum, as std::max_element
-      }
-      sem[i] = best;
-      for (int b = 0; b < kHeadingBins; ++b) {
-        hp[i * kHeadingBins + b] = mean[L.heading_prob + b];
-        hr[i * kHeadingBins + b] = mean[L.heading_residual + b];
-      }
-      op[i] = Eigen::Vector3f(mean[L.offset], mean[L.offset + 1], mean[L.offset + 2]);
+      sem[i] = mean_of(src.data(), passes, L, inv, m, sp + i * nc);
+      std::memcpy(hp + i * kHeadingBins, m + L.heading_prob, sizeof(float) * kHeadingBins);
+      std::memcpy(hr + i * kHeadingBins, m + L.heading_residual, sizeof(float) * kHeadingBins);
+      op[i] = Eigen::Vector3f(m[L.offset], m[L.offset + 1], m[L.offset + 2]);
     }
   }
 }
@@ -534,17 +706,14 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
 void AverageInVoxelOrder(const std::int64_t* off, std::int64_t m0, const std::int64_t* pts,
                          std::size_t n, const std::vector<const float*>& table,
                          const std::vector<const std::int32_t*>& index, const RowLayout& L,
-                         Stage1Output* out) {
+                         Stage1Output* out, HeadsIsa isa) {
+  const MeanFn mean_of = MeanFor(isa, L);
   Resize(n, L.classes, out);
   // Voxel by voxel of the first pass: neighbouring points have neighbouring voxels in every
   // pass, so the row reads stay local; each point's mean is written once (the only scatter
   // into point order).
   at::parallel_for(0, m0, 1024, [&](std::int64_t begin, std::int64_t end) {
-    if (L.stride == 52) {  // the 25 RFS classes
-      AverageRange<13>(begin, end, off, pts, table, index, L, out);
-    } else {
-      AverageRange<0>(begin, end, off, pts, table, index, L, out);
-    }
+    AverageRange(begin, end, off, pts, table, index, L, mean_of, out);
   });
 }
 

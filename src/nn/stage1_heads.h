@@ -22,21 +22,22 @@ struct VoxelHeads {
   int classes = 0;
 };
 
-// The softmax kernel: 4-lane generic vectors (SSE2 / NEON, any CPU), 8-lane AVX2 or 16-lane
-// AVX-512 with masked loads for rows of <= 32 floats (longer rows take the 4-lane kernel).
-// All three give the same bits (the same operations, the 4-lane sum order); kAuto picks the
-// widest this CPU runs. A kernel the CPU cannot run throws InvalidArgument.
-enum class SoftmaxIsa { kAuto, kGeneric, kAvx2, kAvx512 };
-const char* SoftmaxIsaName(SoftmaxIsa isa);
-std::vector<SoftmaxIsa> SupportedSoftmaxIsas();  // kGeneric first
-SoftmaxIsa ResolveSoftmaxIsa(SoftmaxIsa isa);
+// The kernels of the softmax and of the TTA mean: 4-lane generic vectors (SSE2 / NEON, any
+// CPU), 8-lane AVX2 or 16-lane AVX-512 with masked loads (softmax rows of <= 32 floats, mean
+// rows of <= 64; longer rows take the 4-lane kernels). All three give the same bits (the same
+// operations lane by lane, the 4-lane sum order); kAuto picks the widest this CPU runs. A
+// kernel the CPU cannot run throws InvalidArgument.
+enum class HeadsIsa { kAuto, kGeneric, kAvx2, kAvx512 };
+const char* HeadsIsaName(HeadsIsa isa);
+std::vector<HeadsIsa> SupportedHeadsIsas();  // kGeneric first
+HeadsIsa ResolveHeadsIsa(HeadsIsa isa);
 
 // Softmax of each `dim`-float row x + v * stride (v < rows), in place; argmax (if given, one
 // per row) gets the first index of the row's largest probability.
 void SoftmaxRows(float* x, std::int64_t rows, int dim, std::int64_t stride, int* argmax = nullptr,
-                 SoftmaxIsa isa = SoftmaxIsa::kAuto);
+                 HeadsIsa isa = HeadsIsa::kAuto);
 // The semantic rows (argmax: the class of each voxel, if given) and the bin logits.
-void SoftmaxInPlace(const VoxelHeads& h, int* argmax = nullptr, SoftmaxIsa isa = SoftmaxIsa::kAuto);
+void SoftmaxInPlace(const VoxelHeads& h, int* argmax = nullptr, HeadsIsa isa = HeadsIsa::kAuto);
 
 // A pass's voxel rows in the input frame: [semantic prob (classes) | heading prob (12) |
 // heading residual (12) | offset (3)], `stride` floats apart (a multiple of 4: whole vectors).
@@ -68,6 +69,6 @@ void AverageInVoxelOrder(const std::int64_t* voxel_offsets, std::int64_t m0,
                          const std::int64_t* voxel_points, std::size_t n,
                          const std::vector<const float*>& rows,
                          const std::vector<const std::int32_t*>& voxel_of, const RowLayout& layout,
-                         Stage1Output* out);
+                         Stage1Output* out, HeadsIsa isa = HeadsIsa::kAuto);
 
 }  // namespace dimr::nn::stage1_heads

@@ -295,22 +295,22 @@ std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples
 std::string SparseKernelsInUse() { return SparseKernelPathName(ResolveSparseKernelPath()); }
 
 namespace {
-// The heads' softmax kernel follows the sparse-kernel path in force (DIMR_SPARSE_KERNELS or
-// SetSparseKernelPath), so that forcing avx2 on an AVX-512 machine times an AVX2 machine's
-// whole pass; the GEMM fallback takes the 4-lane kernel. All give the same bits.
-stage1_heads::SoftmaxIsa SoftmaxIsaInUse() {
+// The heads' kernels (softmax, TTA mean) follow the sparse-kernel path in force
+// (DIMR_SPARSE_KERNELS or SetSparseKernelPath), so that forcing avx2 on an AVX-512 machine times an
+// AVX2 machine's whole pass; the GEMM fallback takes the 4-lane kernel. All give the same bits.
+stage1_heads::HeadsIsa HeadsIsaInUse() {
   switch (ResolveSparseKernelPath()) {
     case SparseKernelPath::kAvx512:
-      return stage1_heads::SoftmaxIsa::kAvx512;
+      return stage1_heads::HeadsIsa::kAvx512;
     case SparseKernelPath::kAvx2:
-      return stage1_heads::SoftmaxIsa::kAvx2;
+      return stage1_heads::HeadsIsa::kAvx2;
     default:
-      return stage1_heads::SoftmaxIsa::kGeneric;
+      return stage1_heads::HeadsIsa::kGeneric;
   }
 }
 }  // namespace
 
-std::string Stage1SoftmaxInUse() { return stage1_heads::SoftmaxIsaName(SoftmaxIsaInUse()); }
+std::string Stage1HeadsKernelsInUse() { return stage1_heads::HeadsIsaName(HeadsIsaInUse()); }
 
 void SetIntraOpThreads(int threads) {
   if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
@@ -356,7 +356,7 @@ struct Stage1Model::Impl {
       // The semantic and heading-bin softmax in place (stage1_heads: one pass over the rows,
       // no slice copies; ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
       pass.argmax.resize(static_cast<std::size_t>(pass.h.semantic.size(0)));
-      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data(), SoftmaxIsaInUse());
+      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data(), HeadsIsaInUse());
       pass.point_to_voxel = cpu(v.map.point_to_voxel.to(torch::kInt64));
       pass.voxel_offsets = cpu(v.map.voxel_offsets.to(torch::kInt64));
       pass.voxel_points = cpu(v.map.voxel_points.to(torch::kInt64));
@@ -653,7 +653,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     }
     stage1_heads::AverageInVoxelOrder(plain.voxel_offsets.data_ptr<int64_t>(),
                                       plain.voxel_offsets.size(0) - 1, order, n, row_tables,
-                                      indexes, layout, &out);
+                                      indexes, layout, &out, HeadsIsaInUse());
   }
   // heads = everything but the voxelisation, rulebooks and convolutions: network input, head
   // MLPs, softmax, mapping back, averaging and copy-out.

@@ -769,8 +769,8 @@ void RunBench(const BenchArgs& a) {
               segmenter.model_config().c_str(), a.rooms, a.repeats, npts, a.threads);
   std::printf("inference %s (from %s and the flags): %d network passes per room\n",
               inf.ToString().c_str(), source.c_str(), inf.network_passes());
-  std::printf("CPU %s, sparse kernels %s, softmax %s, clustering %s\n", CpuModel().c_str(),
-              nn::SparseKernelsInUse().c_str(), nn::Stage1SoftmaxInUse().c_str(),
+  std::printf("CPU %s, sparse kernels %s, heads %s, clustering %s\n", CpuModel().c_str(),
+              nn::SparseKernelsInUse().c_str(), nn::Stage1HeadsKernelsInUse().c_str(),
               pipeline::ClusteringSimdPath());
   std::printf("| step | median ms | min ms | max ms |\n|---|---|---|---|\n");
   for (std::size_t k = 0; k < rows.size(); ++k) {
@@ -792,7 +792,7 @@ void RunBench(const BenchArgs& a) {
     j["vote_radius"] = inf.vote_radius;
     j["cpu"] = CpuModel();
     j["sparse_kernels"] = nn::SparseKernelsInUse();
-    j["softmax"] = nn::Stage1SoftmaxInUse();
+    j["heads_kernels"] = nn::Stage1HeadsKernelsInUse();
     j["clustering_simd"] = pipeline::ClusteringSimdPath();
     nlohmann::json m;
     for (std::size_t k = 0; k < rows.size(); ++k) m[rows[k].first] = Median(ms[k]);

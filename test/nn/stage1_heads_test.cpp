@@ -225,13 +225,13 @@ TEST(Stage1Heads, SoftmaxMatchesDoublePrecision) {
 // row lengths 1 ... 33 (the wide kernels take rows <= 32; 33 falls back), strided rows, ties,
 // extreme and NaN rows; a kernel the CPU cannot run is refused by name.
 TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
-  const auto isas = stage1_heads::SupportedSoftmaxIsas();
+  const auto isas = stage1_heads::SupportedHeadsIsas();
   ASSERT_FALSE(isas.empty());
-  ASSERT_EQ(isas.front(), stage1_heads::SoftmaxIsa::kGeneric);
+  ASSERT_EQ(isas.front(), stage1_heads::HeadsIsa::kGeneric);
   std::printf("softmax kernels on this CPU:");
-  for (auto isa : isas) std::printf(" %s", stage1_heads::SoftmaxIsaName(isa));
-  std::printf(" (auto: %s)\n", stage1_heads::SoftmaxIsaName(stage1_heads::ResolveSoftmaxIsa(
-                                   stage1_heads::SoftmaxIsa::kAuto)));
+  for (auto isa : isas) std::printf(" %s", stage1_heads::HeadsIsaName(isa));
+  std::printf(" (auto: %s)\n", stage1_heads::HeadsIsaName(
+                                   stage1_heads::ResolveHeadsIsa(stage1_heads::HeadsIsa::kAuto)));
   std::mt19937_64 rng(11);
   std::uniform_real_distribution<float> logit(-30, 30);
   for (int dim = 1; dim <= 33; ++dim) {
@@ -249,24 +249,24 @@ TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
     std::vector<float> want = x;
     std::vector<int> want_arg(rows, -1);
     stage1_heads::SoftmaxRows(want.data(), rows, dim, stride, want_arg.data(),
-                              stage1_heads::SoftmaxIsa::kGeneric);
+                              stage1_heads::HeadsIsa::kGeneric);
     for (auto isa : isas) {
       std::vector<float> got = x;
       std::vector<int> got_arg(rows, -1);
       stage1_heads::SoftmaxRows(got.data(), rows, dim, stride, got_arg.data(), isa);
       for (int v = 0; v < rows; ++v) {
         ASSERT_EQ(got_arg[v], want_arg[v])
-            << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim << " row " << v;
+            << stage1_heads::HeadsIsaName(isa) << " dim " << dim << " row " << v;
         for (int c = 0; c < stride; ++c) {
           const float a = got[v * stride + c], b = want[v * stride + c];
           if (std::isnan(b)) {
-            ASSERT_TRUE(std::isnan(a)) << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim;
+            ASSERT_TRUE(std::isnan(a)) << stage1_heads::HeadsIsaName(isa) << " dim " << dim;
             continue;
           }
           std::uint32_t ua, ub;
           std::memcpy(&ua, &a, 4);
           std::memcpy(&ub, &b, 4);
-          ASSERT_EQ(ua, ub) << stage1_heads::SoftmaxIsaName(isa) << " dim " << dim << " row " << v
+          ASSERT_EQ(ua, ub) << stage1_heads::HeadsIsaName(isa) << " dim " << dim << " row " << v
                             << " col " << c;
         }
       }
@@ -278,10 +278,88 @@ TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
       for (int c = 0; c < dim; ++c) ASSERT_TRUE(std::isnan(got[4 * stride + c]));
     }
   }
-  for (auto isa : {stage1_heads::SoftmaxIsa::kAvx2, stage1_heads::SoftmaxIsa::kAvx512}) {
+  for (auto isa : {stage1_heads::HeadsIsa::kAvx2, stage1_heads::HeadsIsa::kAvx512}) {
     if (std::find(isas.begin(), isas.end(), isa) != isas.end()) continue;
     float row[3] = {0, 1, 2};
     EXPECT_THROW(stage1_heads::SoftmaxRows(row, 1, 3, 3, nullptr, isa), InvalidArgument);
+  }
+}
+
+// The TTA mean on every kernel this CPU runs gives the 4-lane kernel's bits and argmax: the
+// shipped row (25 classes, 52 floats), a short one (7 classes) and one past the wide kernels'
+// 64 floats (40 classes: the 4-lane fallback), 12 and 5 passes, rows with ties and NaN.
+TEST(Stage1Heads, MeanKernelsGiveTheSameBits) {
+  const auto isas = stage1_heads::SupportedHeadsIsas();
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (int classes : {25, 7, 40}) {
+    const stage1_heads::RowLayout L(classes);
+    for (int passes : {12, 5}) {
+      // Pass 0 has m0 voxels of 1..6 points in voxel order; pass k >= 1 a table of mk voxels.
+      const std::int64_t m0 = 300;
+      std::vector<std::int64_t> off{0};
+      for (std::int64_t v = 0; v < m0; ++v) off.push_back(off.back() + 1 + rng() % 6);
+      const std::size_t n = static_cast<std::size_t>(off.back());
+      std::vector<std::int64_t> pts(n);
+      for (std::size_t j = 0; j < n; ++j) pts[j] = static_cast<std::int64_t>(j);
+      std::shuffle(pts.begin(), pts.end(), rng);
+      std::vector<std::vector<float>> tables(passes);
+      std::vector<std::vector<std::int32_t>> voxel_of(passes);
+      for (int k = 0; k < passes; ++k) {
+        const std::int64_t mk = k == 0 ? m0 : 150 + 40 * k;
+        tables[k].resize(static_cast<std::size_t>(mk) * L.stride);
+        for (auto& x : tables[k]) x = u(rng);
+        if (k > 0) {
+          voxel_of[k].resize(n);
+          for (auto& x : voxel_of[k]) x = static_cast<std::int32_t>(rng() % mk);
+        }
+      }
+      // Ties (voxel 1 of pass 0 and every row it meets: equal semantic entries) and a NaN.
+      for (int k = 0; k < passes; ++k) {
+        const std::int64_t row = k == 0 ? 1 : voxel_of[k][off[1]];
+        for (int c = 0; c < classes; ++c) tables[k][row * L.stride + c] = c % 4 == 2 ? 0.5f : 0.1f;
+      }
+      tables[0][2 * L.stride + classes / 2] = std::nanf("");
+      std::vector<const float*> rows;
+      std::vector<const std::int32_t*> index;
+      for (int k = 0; k < passes; ++k) {
+        rows.push_back(tables[k].data());
+        index.push_back(voxel_of[k].data());
+      }
+      Stage1Output want;
+      stage1_heads::AverageInVoxelOrder(off.data(), m0, pts.data(), n, rows, index, L, &want,
+                                        stage1_heads::HeadsIsa::kGeneric);
+      // The tie row's answer is its first maximum, entry 2.
+      ASSERT_EQ(want.semantic[pts[off[1]]], classes > 2 ? 2 : 0);
+      for (auto isa : isas) {
+        Stage1Output got;
+        stage1_heads::AverageInVoxelOrder(off.data(), m0, pts.data(), n, rows, index, L, &got, isa);
+        const char* name = stage1_heads::HeadsIsaName(isa);
+        ASSERT_EQ(got.semantic, want.semantic) << name << " classes " << classes;
+        auto same_bits = [&](const std::vector<float>& a, const std::vector<float>& b) {
+          if (a.size() != b.size()) return false;
+          return std::memcmp(a.data(), b.data(), sizeof(float) * a.size()) == 0;
+        };
+        ASSERT_TRUE(same_bits(got.semantic_prob, want.semantic_prob)) << name << " " << classes;
+        ASSERT_TRUE(same_bits(got.heading_prob, want.heading_prob)) << name << " " << classes;
+        ASSERT_TRUE(same_bits(got.heading_residual, want.heading_residual)) << name;
+        for (std::size_t i = 0; i < n; ++i) {
+          ASSERT_EQ(std::memcmp(got.offsets[i].data(), want.offsets[i].data(), 12), 0) << name;
+        }
+      }
+      // The 4-lane mean is the pass-order sum times 1 / passes, point by point.
+      for (std::size_t j = 0; j < n; j += 37) {
+        std::int64_t v = 0;
+        while (off[v + 1] <= static_cast<std::int64_t>(j)) ++v;
+        const int c = 3;
+        float sum = tables[0][v * L.stride + c];
+        for (int k = 1; k < passes; ++k) sum += tables[k][voxel_of[k][j] * L.stride + c];
+        const float mean = sum * (1.0f / passes);
+        if (!std::isnan(mean)) {
+          ASSERT_EQ(want.semantic_prob[pts[j] * classes + c], mean);
+        }
+      }
+    }
   }
 }
 

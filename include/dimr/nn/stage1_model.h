@@ -184,9 +184,10 @@ inline const config::EnumNames<Device>& DeviceNames() {
 // The sparse-convolution kernel path the network takes on this CPU ("avx512", "avx2",
 // "gemm"), for benchmark headers.
 std::string SparseKernelsInUse();
-// The stage-1 heads' softmax kernel ("avx512", "avx2", "generic": the sparse-kernel path's ISA,
-// the 4-lane kernel for the GEMM path; the same bits on every path), for benchmark headers.
-std::string Stage1SoftmaxInUse();
+// The stage-1 heads' kernels, softmax and TTA mean ("avx512", "avx2", "generic": the
+// sparse-kernel path's ISA, the 4-lane kernels for the GEMM path; the same bits on every
+// path), for benchmark headers.
+std::string Stage1HeadsKernelsInUse();
 
 // Intra-op threads of the network (at::set_num_threads), for torch-free callers.
 void SetIntraOpThreads(int threads);
