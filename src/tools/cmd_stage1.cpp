@@ -749,6 +749,7 @@ void RunBench(const BenchArgs& a) {
       {"clustering", "clustering (" + std::to_string(inf.passes.size()) + " passes) + NMS"},
       {"total", "total"}};
   std::vector<std::vector<double>> ms(rows.size());
+  std::vector<double> heads_per_unet;  // per run: both times under the same load
   long long npts = 0;
   for (int rep = 0; rep < a.repeats + 1; ++rep) {  // first round = warm-up
     for (const auto& room : rooms) {
@@ -761,6 +762,11 @@ void RunBench(const BenchArgs& a) {
           v = t.ms("network") - t.ms("voxelize") - t.ms("kernel_maps") - t.ms("unet");
         }
         ms[k].push_back(v);
+      }
+      const double unet = t.ms("unet");
+      if (unet > 0) {
+        heads_per_unet.push_back((t.ms("network") - t.ms("voxelize") - t.ms("kernel_maps") - unet) /
+                                 unet);
       }
       npts = static_cast<long long>(room.size());
     }
@@ -777,6 +783,12 @@ void RunBench(const BenchArgs& a) {
     const auto& v = ms[k];
     std::printf("| %s | %.1f | %.1f | %.1f |\n", rows[k].second.c_str(), Median(v),
                 *std::min_element(v.begin(), v.end()), *std::max_element(v.begin(), v.end()));
+  }
+  if (!heads_per_unet.empty()) {
+    std::printf(
+        "heads / U-Net convolutions per run: median %.3f (min %.3f, max %.3f, %zu runs)\n",
+        Median(heads_per_unet), *std::min_element(heads_per_unet.begin(), heads_per_unet.end()),
+        *std::max_element(heads_per_unet.begin(), heads_per_unet.end()), heads_per_unet.size());
   }
   if (!a.json.empty()) {
     nlohmann::json j;
@@ -797,6 +809,7 @@ void RunBench(const BenchArgs& a) {
     nlohmann::json m;
     for (std::size_t k = 0; k < rows.size(); ++k) m[rows[k].first] = Median(ms[k]);
     j["median_ms"] = m;
+    if (!heads_per_unet.empty()) j["median_heads_per_unet"] = Median(heads_per_unet);
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
     f << j.dump(2) << "\n";

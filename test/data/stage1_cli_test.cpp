@@ -164,6 +164,15 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_EQ(b["points_per_room"].get<int>(), 5000);
   EXPECT_GT(b["median_ms"]["unet"].get<double>(), 0.0);
   EXPECT_GE(b["median_ms"]["total"].get<double>(), b["median_ms"]["unet"].get<double>());
+  // The header names every kernel path; the heads / U-Net ratio (issue 21) is per run, so with
+  // one room and one repeat it is the table's heads median over its U-Net median.
+  EXPECT_NE(out.find(", heads "), std::string::npos) << out;
+  EXPECT_EQ(b["heads_kernels"].get<std::string>(), b["sparse_kernels"].get<std::string>() == "gemm"
+                                                       ? "generic"
+                                                       : b["sparse_kernels"].get<std::string>());
+  EXPECT_NE(out.find("heads / U-Net convolutions per run: median"), std::string::npos) << out;
+  EXPECT_NEAR(b["median_heads_per_unet"].get<double>(),
+              b["median_ms"]["heads"].get<double>() / b["median_ms"]["unet"].get<double>(), 1e-9);
   // The bench runs the settings `stage1 eval` runs (the card's: 2 rotations x mirror).
   EXPECT_EQ(b["inference"].get<std::string>(), jc["inference"].get<std::string>());
   EXPECT_NE(out.find("4 network passes per room"), std::string::npos) << out;
