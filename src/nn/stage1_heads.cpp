@@ -652,14 +652,17 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
   const int passes = static_cast<int>(table.size());
   const int nc = L.classes, stride = L.stride;
   const float inv = 1.0f / static_cast<float>(passes);
+  // Row j of the tables is the j-th point in the first pass's voxel order (point_row[pts[j]] =
+  // j): the table writes are sequential, only the class and the offset go to point order.
   float* sp = out->semantic_prob.data();
   float* hp = out->heading_prob.data();
   float* hr = out->heading_residual.data();
   Eigen::Vector3f* op = out->offsets.data();
   int* sem = out->semantic.data();
-  // Points ahead whose rows (every pass) and output rows are prefetched: the reads are local
-  // but not predictable for the hardware prefetcher (each pass's voxels are numbered along its
-  // own rotated axes), the writes are scattered.
+  std::int64_t* row_of = out->point_row.data();
+  // Points ahead whose rows (every pass) are prefetched: the reads are local but not
+  // predictable for the hardware prefetcher (each pass's voxels are numbered along its own
+  // rotated axes); and the per-point writes (class, offset, row), which are scattered.
   constexpr std::int64_t ahead = 8;
   const std::int64_t j_end = off[end];
   std::vector<const float*> src(passes);
@@ -678,14 +681,9 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
         PrefetchRange(table[k] + static_cast<std::int64_t>(index[k][j]) * stride, stride * 4);
       }
       const std::int64_t i = pts[j];
-      __builtin_prefetch(sp + i * nc, 1);
-      __builtin_prefetch(sp + i * nc + nc - 1, 1);
-      __builtin_prefetch(hp + i * kHeadingBins, 1);
-      __builtin_prefetch(hp + i * kHeadingBins + kHeadingBins - 1, 1);
-      __builtin_prefetch(hr + i * kHeadingBins, 1);
-      __builtin_prefetch(hr + i * kHeadingBins + kHeadingBins - 1, 1);
       __builtin_prefetch(op + i, 1);
       __builtin_prefetch(sem + i, 1);
+      __builtin_prefetch(row_of + i, 1);
     }
     src[0] = table[0] + v * stride;
     for (std::int64_t j = off[v]; j < off[v + 1]; ++j) {
@@ -693,9 +691,10 @@ void AverageRange(std::int64_t begin, std::int64_t end, const std::int64_t* off,
         src[k] = table[k] + static_cast<std::int64_t>(index[k][j]) * stride;
       }
       const std::int64_t i = pts[j];
-      sem[i] = mean_of(src.data(), passes, L, inv, m, sp + i * nc);
-      std::memcpy(hp + i * kHeadingBins, m + L.heading_prob, sizeof(float) * kHeadingBins);
-      std::memcpy(hr + i * kHeadingBins, m + L.heading_residual, sizeof(float) * kHeadingBins);
+      sem[i] = mean_of(src.data(), passes, L, inv, m, sp + j * nc);
+      row_of[i] = j;
+      std::memcpy(hp + j * kHeadingBins, m + L.heading_prob, sizeof(float) * kHeadingBins);
+      std::memcpy(hr + j * kHeadingBins, m + L.heading_residual, sizeof(float) * kHeadingBins);
       op[i] = Eigen::Vector3f(m[L.offset], m[L.offset + 1], m[L.offset + 2]);
     }
   }
@@ -709,6 +708,7 @@ void AverageInVoxelOrder(const std::int64_t* off, std::int64_t m0, const std::in
                          Stage1Output* out, HeadsIsa isa) {
   const MeanFn mean_of = MeanFor(isa, L);
   Resize(n, L.classes, out);
+  out->point_row.resize(n);
   // Voxel by voxel of the first pass: neighbouring points have neighbouring voxels in every
   // pass, so the row reads stay local; each point's mean is written once (the only scatter
   // into point order).

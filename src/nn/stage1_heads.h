@@ -59,8 +59,9 @@ void InputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, i
 void CopyOutOnePass(const VoxelHeads& h, const int* argmax, const std::int64_t* point_to_voxel,
                     std::size_t n, Stage1Output* out);
 
-// Several passes: the mean of every point's voxel rows over the passes, summed in pass order
-// (one row per point: out->point_row empty).
+// Several passes: the mean of every point's voxel rows over the passes, summed in pass order;
+// one row per point, stored in the first pass's voxel order (out->point_row[voxel_points[j]]
+// = j: the table writes are sequential, ~10 % of the 12-pass heads).
 // The points are walked in the first pass's voxel order (voxel_offsets [m0 + 1] CSR over
 // voxel_points [n]); rows[0] (InputFrameRows of the first pass) is indexed by that voxel,
 // rows[k] (k >= 1) by voxel_of[k][j] for the j-th point of that order (voxel_of[0] unused).

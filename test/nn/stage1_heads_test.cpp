@@ -115,11 +115,22 @@ void ExpectSameAverage(const Stage1Model& model, const std::vector<Eigen::Vector
                        const std::vector<Eigen::Vector3f>* colours, int rotations, bool mirror) {
   SCOPED_TRACE("rotations " + std::to_string(rotations) + (mirror ? " + mirror" : ""));
   const ScenePoints view(points, colours, "room");
-  const Stage1Output got = model.PredictAugmented(view, rotations, mirror);
+  Stage1Output got = model.PredictAugmented(view, rotations, mirror);
   const Stage1Output want = PerPointAverage(model, points, colours, rotations, mirror);
   const std::size_t n = points.size();
   const int nc = model.config().num_classes;
   ASSERT_EQ(got.semantic.size(), n);
+  // One row per point (each its own mean), stored in the first pass's voxel order: point_row
+  // is a permutation of the points.
+  ASSERT_EQ(got.point_row.size(), n);
+  ASSERT_EQ(got.NumRows(nc), n);
+  std::vector<bool> seen(n, false);
+  for (std::int64_t r : got.point_row) {
+    ASSERT_TRUE(r >= 0 && r < static_cast<std::int64_t>(n) && !seen[r]) << r;
+    seen[r] = true;
+  }
+  EXPECT_EQ(got.SemanticProb(n / 2, nc)[1], got.semantic_prob[got.point_row[n / 2] * nc + 1]);
+  got.ExpandToPoints(n, nc);
   // Sums of up to 12 floats in another order (float vs double): a few 1e-7. A wrong heading
   // bin, sign, offset rotation or point -> voxel row is off by 1e-3 or more.
   EXPECT_LT(MaxDiff(got.semantic_prob, want.semantic_prob), 2e-6);
@@ -355,8 +366,9 @@ TEST(Stage1Heads, MeanKernelsGiveTheSameBits) {
         float sum = tables[0][v * L.stride + c];
         for (int k = 1; k < passes; ++k) sum += tables[k][voxel_of[k][j] * L.stride + c];
         const float mean = sum * (1.0f / passes);
+        ASSERT_EQ(want.point_row[pts[j]], static_cast<std::int64_t>(j));  // row j: voxel order
         if (!std::isnan(mean)) {
-          ASSERT_EQ(want.semantic_prob[pts[j] * classes + c], mean);
+          ASSERT_EQ(want.semantic_prob[j * classes + c], mean);
         }
       }
     }

@@ -509,8 +509,11 @@ TEST(Stage1Model, RotationAndMirrorAveragingIsEquivariant) {
   EXPECT_GT(plain_diff, 1e-3);
 
   // Four rotations: the same average, offsets turned by 90 degrees, heading bins shifted by 3.
-  const Stage1Output a = model.PredictAugmented(s, 4, false);
-  const Stage1Output b = model.PredictAugmented(turned, 4, false);
+  // (Per-point tables: the TTA rows are stored in each scene's own voxel order.)
+  Stage1Output a = model.PredictAugmented(s, 4, false);
+  Stage1Output b = model.PredictAugmented(turned, 4, false);
+  a.ExpandToPoints(n);
+  b.ExpandToPoints(n);
   ASSERT_EQ(b.semantic_prob.size(), a.semantic_prob.size());
   double row = 0;
   for (int c = 0; c < kStage1Classes; ++c) row += a.semantic_prob[c];
@@ -534,8 +537,10 @@ TEST(Stage1Model, RotationAndMirrorAveragingIsEquivariant) {
   // Rotations and mirror images: the mirrored scene's average is the mirrored average
   // (offset x negated, heading bin k -> 6 - k with the residual negated).
   const Stage1Sample mirrored = Transform(s, 0, true, &centre);
-  const Stage1Output am = model.PredictAugmented(s, 2, true);
-  const Stage1Output bm = model.PredictAugmented(mirrored, 2, true);
+  Stage1Output am = model.PredictAugmented(s, 2, true);
+  Stage1Output bm = model.PredictAugmented(mirrored, 2, true);
+  am.ExpandToPoints(n);
+  bm.ExpandToPoints(n);
   for (std::size_t i = 0; i < am.semantic_prob.size(); ++i) {
     ASSERT_NEAR(bm.semantic_prob[i], am.semantic_prob[i], 2e-4) << i;
   }

@@ -211,9 +211,14 @@ TEST(Stage1Segmenter, RunsTheWholeChainWithBiasVoteAndTimings) {
   for (std::size_t k = 0; k < c.instances.size(); ++k) {
     EXPECT_EQ(split.instances[k].points, c.instances[k].points);
   }
-  // Bias, vote, scores and headings read the per-voxel rows as the same rows spread to every
-  // point would give them (a wrong point -> row lookup changes labels, scores or headings).
-  for (const Stage1Segmenter* s : {&seg, &chairs}) {
+  // Bias, vote, scores and headings read the per-voxel rows (one pass) or the per-point rows
+  // in voxel order (test-time augmentation) as the same rows spread to every point would give
+  // them (a wrong point -> row lookup changes labels, scores or headings).
+  Stage1InferenceConfig tta_cfg = cfg;
+  tta_cfg.rotations = 2;
+  tta_cfg.mirror = true;
+  const Stage1Segmenter tta = Stage1Segmenter::Load(kModel, tta_cfg);
+  for (const Stage1Segmenter* s : {&seg, &chairs, &tta}) {
     Stage1Result voxel_rows = s->RunNetwork(room);
     Stage1Result point_rows = voxel_rows;
     point_rows.ExpandToPoints(n);
@@ -253,7 +258,8 @@ TEST(Stage1Segmenter, TestTimeAugmentationAveragesThePasses) {
   cfg.mirror = true;
   const Stage1Result four = Stage1Segmenter::Load(kModel, cfg).Segment(room);
   double diff = 0, row = 0;
-  ASSERT_TRUE(four.point_row.empty());  // each point its own mean
+  // Each point its own mean: one row per point, in the plain pass's voxel order.
+  ASSERT_EQ(four.point_row.size(), room.size());
   ASSERT_EQ(four.semantic_prob.size(), room.size() * 25);
   for (std::size_t i = 0; i < room.size(); ++i) {
     for (int k = 0; k < 25; ++k) {

@@ -79,8 +79,9 @@ struct Stage1StepLog {
 // The probability tables of stage 1, stored once per row: a row is a voxel of the network's
 // grid after a single pass (every point of a voxel has the voxel's outputs: the 100k points
 // of a room share ~20k rows, so the tables are a fifth of a per-point copy) or, after
-// test-time augmentation (each point its own mean), a point. point_row[i] is the row of point
-// i; empty means row i is point i. Read a point's values with SemanticProb(i) etc.
+// test-time augmentation (each point its own mean), a point, the rows stored in the first
+// pass's voxel order. point_row[i] is the row of point i; empty means row i is point i (as
+// after ExpandToPoints). Read a point's values with SemanticProb(i) etc.
 struct Stage1PointRows {
   std::vector<float> semantic_prob;     // R x C softmax (C = 25)
   std::vector<float> heading_prob;      // R x 12 softmax of the bin logits
