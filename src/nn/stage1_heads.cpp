@@ -50,22 +50,32 @@ inline F4 Splat(float v) { return F4{v, v, v, v}; }
 // |r| <= ln 2 / 2, a degree-7 polynomial in r, times 2^n; relative error ~1e-7, i.e. within
 // an ulp or two of the correctly rounded value). Below -87.3 (e^x < 1.2e-38, where 2^n would
 // leave the normal range) it returns 0; NaN stays NaN.
+// The constants of ExpNonPositive, shared by its 4-, 8- and 16-lane forms (the same operations
+// in each, so the same bits).
+struct ExpConstants {
+  static constexpr float kLow = -87.3f;
+  static constexpr float kMagic = 12582912.0f;  // 1.5 * 2^23
+  static constexpr float kLog2e = 1.44269504088896341f;
+  static constexpr float kLn2Hi = 0.693359375f;  // ln 2 = kLn2Hi + kLn2Lo, n * kLn2Hi exact
+  static constexpr float kLn2Lo = -2.12194440e-4f;
+  static constexpr float kPoly[6] = {1.9875691500e-4f, 1.3981999507e-3f, 8.3334519073e-3f,
+                                     4.1665795894e-2f, 1.6666665459e-1f, 5.0000001201e-1f};
+};
+
 inline F4 ExpNonPositive(F4 x) {
-  const F4 lo = Splat(-87.3f);
+  using K = ExpConstants;
+  const F4 lo = Splat(K::kLow);
   const I4 tiny = x < lo;
   const F4 xc = tiny ? lo : x;
   // n = round(x / ln 2): adding and subtracting 1.5 * 2^23 rounds to the nearest integer.
-  const F4 magic = Splat(12582912.0f);
-  const F4 n = (xc * Splat(1.44269504088896341f) + magic) - magic;
+  const F4 magic = Splat(K::kMagic);
+  const F4 n = (xc * Splat(K::kLog2e) + magic) - magic;
   // r = x - n ln 2, with ln 2 split in two so that n * C1 is exact.
-  F4 r = xc - n * Splat(0.693359375f);
-  r = r - n * Splat(-2.12194440e-4f);
-  F4 p = Splat(1.9875691500e-4f);
-  p = p * r + Splat(1.3981999507e-3f);
-  p = p * r + Splat(8.3334519073e-3f);
-  p = p * r + Splat(4.1665795894e-2f);
-  p = p * r + Splat(1.6666665459e-1f);
-  p = p * r + Splat(5.0000001201e-1f);
+  F4 r = xc - n * Splat(K::kLn2Hi);
+  r = r - n * Splat(K::kLn2Lo);
+  F4 p = Splat(K::kPoly[0]);
+#pragma GCC unroll 8
+  for (int k = 1; k < 6; ++k) p = p * r + Splat(K::kPoly[k]);
   p = p * (r * r) + r + Splat(1.0f);
   const I4 bits = (__builtin_convertvector(n, I4) + 127) << 23;
   F4 two_n;
@@ -125,20 +135,18 @@ inline int SoftmaxRow(float* x, int dim) {
 // zeros, and s + 0 = s), then (s0 + s1) + (s2 + s3). The maximum and the argmax do not depend
 // on the order (max is exact; a NaN row is NaN in every lane whatever max returned).
 __attribute__((target("avx512f"))) inline __m512 Exp512(__m512 x) {
-  const __m512 lo = _mm512_set1_ps(-87.3f);
+  using K = ExpConstants;
+  const __m512 lo = _mm512_set1_ps(K::kLow);
   const __mmask16 tiny = _mm512_cmp_ps_mask(x, lo, _CMP_LT_OQ);
   const __m512 xc = _mm512_mask_blend_ps(tiny, x, lo);
-  const __m512 magic = _mm512_set1_ps(12582912.0f);
-  const __m512 n = _mm512_sub_ps(
-      _mm512_add_ps(_mm512_mul_ps(xc, _mm512_set1_ps(1.44269504088896341f)), magic), magic);
-  __m512 r = _mm512_sub_ps(xc, _mm512_mul_ps(n, _mm512_set1_ps(0.693359375f)));
-  r = _mm512_sub_ps(r, _mm512_mul_ps(n, _mm512_set1_ps(-2.12194440e-4f)));
-  __m512 p = _mm512_set1_ps(1.9875691500e-4f);
-  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(1.3981999507e-3f));
-  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(8.3334519073e-3f));
-  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(4.1665795894e-2f));
-  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(1.6666665459e-1f));
-  p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(5.0000001201e-1f));
+  const __m512 magic = _mm512_set1_ps(K::kMagic);
+  const __m512 n =
+      _mm512_sub_ps(_mm512_add_ps(_mm512_mul_ps(xc, _mm512_set1_ps(K::kLog2e)), magic), magic);
+  __m512 r = _mm512_sub_ps(xc, _mm512_mul_ps(n, _mm512_set1_ps(K::kLn2Hi)));
+  r = _mm512_sub_ps(r, _mm512_mul_ps(n, _mm512_set1_ps(K::kLn2Lo)));
+  __m512 p = _mm512_set1_ps(K::kPoly[0]);
+#pragma GCC unroll 8
+  for (int k = 1; k < 6; ++k) p = _mm512_add_ps(_mm512_mul_ps(p, r), _mm512_set1_ps(K::kPoly[k]));
   p = _mm512_add_ps(_mm512_add_ps(_mm512_mul_ps(p, _mm512_mul_ps(r, r)), r), _mm512_set1_ps(1.0f));
   const __m512i bits =
       _mm512_slli_epi32(_mm512_add_epi32(_mm512_cvttps_epi32(n), _mm512_set1_epi32(127)), 23);
@@ -182,20 +190,18 @@ __attribute__((target("avx512f"))) inline int SoftmaxRow512(float* x, int dim) {
 }
 
 __attribute__((target("avx2"))) inline __m256 Exp256(__m256 x) {
-  const __m256 lo = _mm256_set1_ps(-87.3f);
+  using K = ExpConstants;
+  const __m256 lo = _mm256_set1_ps(K::kLow);
   const __m256 tiny = _mm256_cmp_ps(x, lo, _CMP_LT_OQ);
   const __m256 xc = _mm256_blendv_ps(x, lo, tiny);
-  const __m256 magic = _mm256_set1_ps(12582912.0f);
-  const __m256 n = _mm256_sub_ps(
-      _mm256_add_ps(_mm256_mul_ps(xc, _mm256_set1_ps(1.44269504088896341f)), magic), magic);
-  __m256 r = _mm256_sub_ps(xc, _mm256_mul_ps(n, _mm256_set1_ps(0.693359375f)));
-  r = _mm256_sub_ps(r, _mm256_mul_ps(n, _mm256_set1_ps(-2.12194440e-4f)));
-  __m256 p = _mm256_set1_ps(1.9875691500e-4f);
-  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.3981999507e-3f));
-  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(8.3334519073e-3f));
-  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(4.1665795894e-2f));
-  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(1.6666665459e-1f));
-  p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(5.0000001201e-1f));
+  const __m256 magic = _mm256_set1_ps(K::kMagic);
+  const __m256 n =
+      _mm256_sub_ps(_mm256_add_ps(_mm256_mul_ps(xc, _mm256_set1_ps(K::kLog2e)), magic), magic);
+  __m256 r = _mm256_sub_ps(xc, _mm256_mul_ps(n, _mm256_set1_ps(K::kLn2Hi)));
+  r = _mm256_sub_ps(r, _mm256_mul_ps(n, _mm256_set1_ps(K::kLn2Lo)));
+  __m256 p = _mm256_set1_ps(K::kPoly[0]);
+#pragma GCC unroll 8
+  for (int k = 1; k < 6; ++k) p = _mm256_add_ps(_mm256_mul_ps(p, r), _mm256_set1_ps(K::kPoly[k]));
   p = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(p, _mm256_mul_ps(r, r)), r), _mm256_set1_ps(1.0f));
   const __m256i bits =
       _mm256_slli_epi32(_mm256_add_epi32(_mm256_cvttps_epi32(n), _mm256_set1_epi32(127)), 23);
