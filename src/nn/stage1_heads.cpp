@@ -182,7 +182,10 @@ __attribute__((target("avx512f"))) inline int SoftmaxRow512(float* x, int dim) {
   const __m512 pb = _mm512_mul_ps(eb, inv);
   _mm512_mask_storeu_ps(x, m0, pa);
   _mm512_mask_storeu_ps(x + 16, m1, pb);
-  const __m512 best = _mm512_set1_ps(_mm512_reduce_max_ps(_mm512_max_ps(pa, pb)));
+  // The largest probability is exactly inv: the row maximum's exp is exp(0) = 1 exactly and
+  // every other exp is <= 1 (ExpNonPositive never rounds above 1 for x <= 0), so max(e * inv)
+  // = inv, the value the 4-lane kernel finds by a reduction (NaN rows: inv is NaN, no hit).
+  const __m512 best = inv;
   const unsigned hit =
       static_cast<unsigned>(_mm512_mask_cmp_ps_mask(m0, pa, best, _CMP_EQ_OQ)) |
       (static_cast<unsigned>(_mm512_mask_cmp_ps_mask(m1, pb, best, _CMP_EQ_OQ)) << 16);
@@ -239,13 +242,11 @@ __attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  /
   alignas(16) float lane[4];
   _mm_store_ps(lane, s);
   const __m256 inv = _mm256_set1_ps(1.0f / ((lane[0] + lane[1]) + (lane[2] + lane[3])));
-  __m256 pmax = _mm256_setzero_ps();
   for (int q = 0; q < nv; ++q) {
     v[q] = _mm256_mul_ps(v[q], inv);
     _mm256_maskstore_ps(x + 8 * q, mask[q], v[q]);
-    pmax = _mm256_max_ps(pmax, v[q]);
   }
-  const __m256 best = _mm256_set1_ps(HorizontalMax256(pmax));
+  const __m256 best = inv;  // the largest probability, as in SoftmaxRow512
   unsigned hit = 0;
   for (int q = 0; q < nv; ++q) {
     const __m256 eq =

@@ -256,6 +256,8 @@ TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
       x[2 * stride + c] = c == dim - 1 ? 0.0f : -INFINITY;      // one finite entry
       x[3 * stride + c] = c == 0 ? 90.0f : -90.0f;              // underflow to 0
       x[4 * stride + c] = c == dim / 2 ? std::nanf("") : 1.0f;  // NaN row
+      // Near ties: exps of 1 and of one ulp below the maximum (the argmax is the first 1).
+      x[5 * stride + c] = c % 2 ? 1.0f : std::nextafter(1.0f, 0.0f);
     }
     std::vector<float> want = x;
     std::vector<int> want_arg(rows, -1);
@@ -285,6 +287,7 @@ TEST(Stage1Heads, SoftmaxKernelsGiveTheSameBits) {
         ASSERT_EQ(got_arg[1], 1);
       }
       ASSERT_EQ(got_arg[2], dim - 1);
+      ASSERT_EQ(got_arg[5], dim > 1 ? 1 : 0);
       ASSERT_EQ(got[3 * stride], 1.0f);
       for (int c = 0; c < dim; ++c) ASSERT_TRUE(std::isnan(got[4 * stride + c]));
     }
