@@ -219,14 +219,16 @@ __attribute__((target("avx2"))) inline float HorizontalMax256(__m256 v) {
   return _mm_cvtss_f32(m);
 }
 
-__attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  // dim <= 32
-  const int nv = (dim + 7) / 8;
+// NV = (dim + 7) / 8 vectors, known at compile time (the vectors stay in registers).
+template <int NV>
+__attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  // dim <= 8 NV
   const __m256i iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 ninf = _mm256_set1_ps(-INFINITY);
-  __m256i mask[4];
-  __m256 v[4];
+  __m256i mask[NV];
+  __m256 v[NV];
   __m256 vmax = ninf;
-  for (int q = 0; q < nv; ++q) {
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
     mask[q] = _mm256_cmpgt_epi32(_mm256_set1_epi32(dim - 8 * q), iota);
     v[q] = _mm256_blendv_ps(ninf, _mm256_maskload_ps(x + 8 * q, mask[q]),
                             _mm256_castsi256_ps(mask[q]));
@@ -234,7 +236,8 @@ __attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  /
   }
   const __m256 shift = _mm256_set1_ps(HorizontalMax256(vmax));
   __m128 s = _mm_setzero_ps();
-  for (int q = 0; q < nv; ++q) {
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
     v[q] = Exp256(_mm256_sub_ps(v[q], shift));
     s = q == 0 ? _mm256_castps256_ps128(v[q]) : _mm_add_ps(s, _mm256_castps256_ps128(v[q]));
     s = _mm_add_ps(s, _mm256_extractf128_ps(v[q], 1));
@@ -242,13 +245,15 @@ __attribute__((target("avx2"))) inline int SoftmaxRow256(float* x, int dim) {  /
   alignas(16) float lane[4];
   _mm_store_ps(lane, s);
   const __m256 inv = _mm256_set1_ps(1.0f / ((lane[0] + lane[1]) + (lane[2] + lane[3])));
-  for (int q = 0; q < nv; ++q) {
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
     v[q] = _mm256_mul_ps(v[q], inv);
     _mm256_maskstore_ps(x + 8 * q, mask[q], v[q]);
   }
   const __m256 best = inv;  // the largest probability, as in SoftmaxRow512
   unsigned hit = 0;
-  for (int q = 0; q < nv; ++q) {
+#pragma GCC unroll 4
+  for (int q = 0; q < NV; ++q) {
     const __m256 eq =
         _mm256_and_ps(_mm256_cmp_ps(v[q], best, _CMP_EQ_OQ), _mm256_castsi256_ps(mask[q]));
     hit |= static_cast<unsigned>(_mm256_movemask_ps(eq)) << (8 * q);
@@ -265,7 +270,18 @@ __attribute__((target("avx512f"))) int Row512(float* x, int dim) {
   return dim <= 32 ? SoftmaxRow512(x, dim) : SoftmaxRow(x, dim);
 }
 __attribute__((target("avx2"))) int Row256(float* x, int dim) {
-  return dim <= 32 ? SoftmaxRow256(x, dim) : SoftmaxRow(x, dim);
+  switch ((dim + 7) / 8) {
+    case 1:
+      return SoftmaxRow256<1>(x, dim);
+    case 2:
+      return SoftmaxRow256<2>(x, dim);
+    case 3:
+      return SoftmaxRow256<3>(x, dim);
+    case 4:
+      return SoftmaxRow256<4>(x, dim);
+    default:
+      return SoftmaxRow(x, dim);
+  }
 }
 #endif
 int Row128(float* x, int dim) { return SoftmaxRow(x, dim); }
