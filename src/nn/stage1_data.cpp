@@ -500,17 +500,30 @@ NetworkFrame FrameInBounds(const Eigen::Vector3f* points, std::size_t n, const E
   return frame;
 }
 
+// The bounding box [*lo, *hi] of n >= 1 points, checked in the same pass: a non-finite point
+// (or colour, if `colors` is given) throws InvalidArgument "<who> point <i> is not finite"
+// ("... colour <i> ..."); a NaN fails allFinite before it could enter the min / max.
+void CheckedBounds(const Eigen::Vector3f* points, const Eigen::Vector3f* colors, std::size_t n,
+                   const std::string& who, Eigen::Vector3f* lo, Eigen::Vector3f* hi) {
+  *lo = points[0];
+  *hi = points[0];
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!Finite(points[i])) {
+      throw InvalidArgument(who + " point " + std::to_string(i) + " is not finite");
+    }
+    if (colors != nullptr && !Finite(colors[i])) {
+      throw InvalidArgument(who + " colour " + std::to_string(i) + " is not finite");
+    }
+    *lo = lo->cwiseMin(points[i]);
+    *hi = hi->cwiseMax(points[i]);
+  }
+}
+
 // EstimateNetworkFrame on n points (a view without a copy).
 NetworkFrame EstimateFrame(const Eigen::Vector3f* points, std::size_t n) {
   if (n == 0) throw InvalidArgument("EstimateNetworkFrame: empty point cloud");
-  Eigen::Vector3f lo = points[0], hi = points[0];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!Finite(points[i])) {
-      throw InvalidArgument("EstimateNetworkFrame: point " + std::to_string(i) + " is not finite");
-    }
-    lo = lo.cwiseMin(points[i]);
-    hi = hi.cwiseMax(points[i]);
-  }
+  Eigen::Vector3f lo, hi;
+  CheckedBounds(points, nullptr, n, "EstimateNetworkFrame:", &lo, &hi);
   return FrameInBounds(points, n, lo, hi);
 }
 
@@ -944,18 +957,9 @@ NetworkFrame WriteStage1NetworkInput(const ScenePoints& scene, const Stage1Input
   const std::size_t n = scene.size;
   const Eigen::Vector3f* pts = scene.points;
   // One checking pass that also gives the bounding box (the frame's x-y centre and the lowest
-  // z for the floor search): a NaN fails allFinite before it could enter the min / max.
-  Eigen::Vector3f lo = pts[0], hi = pts[0];
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!Finite(pts[i])) {
-      throw InvalidArgument(who + " point " + std::to_string(i) + " is not finite");
-    }
-    if (input.use_rgb && !Finite(scene.colors[i])) {
-      throw InvalidArgument(who + " colour " + std::to_string(i) + " is not finite");
-    }
-    lo = lo.cwiseMin(pts[i]);
-    hi = hi.cwiseMax(pts[i]);
-  }
+  // z for the floor search).
+  Eigen::Vector3f lo, hi;
+  CheckedBounds(pts, input.use_rgb ? scene.colors : nullptr, n, who, &lo, &hi);
   const NetworkFrame frame = FrameInBounds(pts, n, lo, hi);
   const int C = input.feature_channels();
   // The same float arithmetic as MakeStage1Batch: p - origin, then times the scale. Float

@@ -606,10 +606,7 @@ __attribute__((target("avx2"))) int Mean256(const float* const* src, int passes,
         _mm256_movemask_ps(_mm256_and_ps(_mm256_cmp_ps(acc[q], acc[q], _CMP_UNORD_Q), in_class[q]));
   }
   if (nan) return FirstMax(mean, L.classes);
-  __m128 t = _mm_max_ps(_mm256_castps256_ps128(top), _mm256_extractf128_ps(top, 1));
-  t = _mm_max_ps(t, _mm_movehl_ps(t, t));
-  t = _mm_max_ss(t, _mm_shuffle_ps(t, t, 1));
-  const __m256 best = _mm256_set1_ps(_mm_cvtss_f32(t));
+  const __m256 best = _mm256_set1_ps(HorizontalMax256(top));
   std::uint64_t hit = 0;
 #pragma GCC unroll 8
   for (int q = 0; q < NV; ++q) {
@@ -623,9 +620,10 @@ __attribute__((target("avx2"))) int Mean256(const float* const* src, int passes,
 // The mean kernel for this row length on `isa` (rows of <= 64 floats on the wide ISAs).
 MeanFn MeanFor(HeadsIsa isa, const RowLayout& L) {
   const int stride = L.stride;
+  const HeadsIsa use = Resolve(isa);  // an unsupported request is refused for any row length
 #if defined(__x86_64__)
   if (stride <= 64) {
-    switch (Resolve(isa)) {
+    switch (use) {
       case HeadsIsa::kAvx512:
         switch ((stride + 15) / 16) {
           case 1:
@@ -659,11 +657,9 @@ MeanFn MeanFor(HeadsIsa isa, const RowLayout& L) {
       default:
         break;
     }
-  } else {
-    Resolve(isa);  // an unsupported request is still refused
   }
 #else
-  Resolve(isa);
+  (void)use;
 #endif
   return stride == 52 ? &MeanGeneric<13> : &MeanGeneric<0>;  // 52: the 25 RFS classes
 }

@@ -385,8 +385,8 @@ struct Stage1Model::Impl {
   Pass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
     // MakeStage1NetworkInput's numbers written straight into uninitialised tensors (no zero
     // fill, no copy).
+    // (An empty scene gets empty tensors; WriteStage1NetworkInput refuses it by name.)
     const int64_t n = static_cast<int64_t>(scene.size);
-    if (n == 0) throw InvalidArgument("stage1 input: scene '" + scene.name + "' has no points");
     torch::Tensor voxel = torch::empty({n, 4}, torch::kInt32);
     torch::Tensor features = torch::empty({n, config.input.feature_channels()}, torch::kFloat32);
     std::array<std::int64_t, 3> extent;

@@ -756,18 +756,12 @@ void RunBench(const BenchArgs& a) {
       const pipeline::Stage1Result r = segmenter.Segment(room);
       if (rep == 0) continue;
       const Timings& t = r.timings;
-      for (std::size_t k = 0; k < rows.size(); ++k) {
-        double v = t.ms(rows[k].first);
-        if (rows[k].first == "heads") {
-          v = t.ms("network") - t.ms("voxelize") - t.ms("kernel_maps") - t.ms("unet");
-        }
-        ms[k].push_back(v);
-      }
       const double unet = t.ms("unet");
-      if (unet > 0) {
-        heads_per_unet.push_back((t.ms("network") - t.ms("voxelize") - t.ms("kernel_maps") - unet) /
-                                 unet);
+      const double heads = t.ms("network") - t.ms("voxelize") - t.ms("kernel_maps") - unet;
+      for (std::size_t k = 0; k < rows.size(); ++k) {
+        ms[k].push_back(rows[k].first == "heads" ? heads : t.ms(rows[k].first));
       }
+      if (unet > 0) heads_per_unet.push_back(heads / unet);
       npts = static_cast<long long>(room.size());
     }
   }
