@@ -420,6 +420,24 @@ void InputFrameRows(const VoxelHeads& h, const RowLayout& L, bool mirror, int k,
   }
 }
 
+void SoftmaxToInputFrameRows(const VoxelHeads& h, const RowLayout& L, bool mirror, int k,
+                             int rotations, float* rows, HeadsIsa isa) {
+  constexpr std::int64_t kBlock = 256;  // 256 x 49 floats of a pass: ~50 KB
+  const std::int64_t blocks = (h.voxels + kBlock - 1) / kBlock;
+  at::parallel_for(0, blocks, 8, [&](std::int64_t first, std::int64_t last) {
+    for (std::int64_t q = first; q < last; ++q) {
+      const std::int64_t begin = q * kBlock;
+      VoxelHeads b = h;
+      b.prob += begin * h.classes;
+      b.offset += begin * 3;
+      b.heading += begin * 2 * kHeadingBins;
+      b.voxels = std::min(kBlock, h.voxels - begin);
+      SoftmaxInPlace(b, nullptr, isa);  // (nested: runs on this thread)
+      InputFrameRows(b, L, mirror, k, rotations, rows + begin * L.stride);
+    }
+  });
+}
+
 namespace {
 
 void Resize(std::size_t n, int nc, Stage1Output* out) {
@@ -734,6 +752,276 @@ void AverageInVoxelOrder(const std::int64_t* off, std::int64_t m0, const std::in
   at::parallel_for(0, m0, 1024, [&](std::int64_t begin, std::int64_t end) {
     AverageRange(begin, end, off, pts, table, index, L, mean_of, out);
   });
+}
+
+// ---------------------------------------------------------------------------------------
+// Moved scenes of the test-time augmentation
+// ---------------------------------------------------------------------------------------
+
+namespace {
+
+// The reference arithmetic, point by point (the tails of the wide kernels and the generic path).
+void MoveRange(const Eigen::Vector3f* p, std::size_t begin, std::size_t end, double cx, double cy,
+               double sign, double c, double s, MovedPoints* out) {
+  float* X = out->x.data();
+  float* Y = out->y.data();
+  float* Z = out->z.data();
+  for (std::size_t i = begin; i < end; ++i) {
+    const double dx = sign * (p[i].x() - cx);
+    const double dy = p[i].y() - cy;
+    X[i] = static_cast<float>(cx + c * dx - s * dy);
+    Y[i] = static_cast<float>(cy + s * dx + c * dy);
+    Z[i] = p[i].z();
+    const float v[3] = {X[i], Y[i], Z[i]};
+    for (int a = 0; a < 3; ++a) {
+      out->lo[a] = std::min(out->lo[a], v[a]);
+      out->hi[a] = std::max(out->hi[a], v[a]);
+    }
+  }
+}
+
+void InputRange(const MovedPoints& m, const Eigen::Vector3f* colors, std::size_t begin,
+                std::size_t end, const float origin[3], float scale, const double q0[3], float* f,
+                std::int32_t* vx) {
+  const int C = colors ? 6 : 3;
+  const float* src[3] = {m.x.data(), m.y.data(), m.z.data()};
+  for (std::size_t i = begin; i < end; ++i) {
+    vx[4 * i] = 0;
+    for (int a = 0; a < 3; ++a) {
+      const float p = src[a][i] - origin[a];
+      const float q = p * scale;
+      f[C * i + a] = p;
+      // trunc(q - qmin) of a non-negative difference is its floor.
+      vx[4 * i + 1 + a] = static_cast<std::int32_t>(static_cast<double>(q) - q0[a]);
+    }
+    if (colors) {
+      for (int a = 0; a < 3; ++a) f[C * i + 3 + a] = colors[i][a] - 0.5f;
+    }
+  }
+}
+
+#if defined(__x86_64__)
+// Lane l of a permutation over `sources` 16-lane vectors: index and whether it reads the
+// second pair (flat >= 32). The AoS <-> SoA moves below are two permutes per vector.
+struct Gather16 {
+  alignas(64) std::int32_t first[16];   // permutex2var over (v0, v1)
+  alignas(64) std::int32_t second[16];  // permutexvar over v2, where `mask` is set
+  std::uint16_t mask = 0;
+};
+
+// SoA lane i of coordinate a <- AoS flat 3 i + a of 48 floats in three vectors.
+Gather16 AosToSoa(int a) {
+  Gather16 g;
+  for (int i = 0; i < 16; ++i) {
+    const int flat = 3 * i + a;
+    g.first[i] = flat < 32 ? flat : 0;
+    g.second[i] = flat < 32 ? 0 : flat - 32;
+    if (flat >= 32) g.mask = static_cast<std::uint16_t>(g.mask | (1u << i));
+  }
+  return g;
+}
+
+__attribute__((target("avx512f"))) inline __m256 High256(__m512 v) {
+  return _mm256_castpd_ps(_mm512_maskz_extractf64x4_pd(0xFF, _mm512_castps_pd(v), 1));
+}
+
+__attribute__((target("avx512f"))) inline __m512 Join256(__m256 lo, __m256 hi) {
+  return _mm512_castpd_ps(
+      _mm512_insertf64x4(_mm512_castps_pd(_mm512_castps256_ps512(lo)), _mm256_castps_pd(hi), 1));
+}
+
+// 16 points per step: the x / y rows gathered from the AoS points, moved in two 8-lane double
+// halves with the reference's operations in its order (no FMA: -ffp-contract=off), rounded.
+__attribute__((target("avx512f"))) void Move512(const Eigen::Vector3f* p, std::size_t n, double cx,
+                                                double cy, double sign, double c, double s,
+                                                MovedPoints* out) {
+  const Gather16 gx = AosToSoa(0), gy = AosToSoa(1), gz = AosToSoa(2);
+  const __m512i x1 = _mm512_load_si512(gx.first), x2 = _mm512_load_si512(gx.second);
+  const __m512i y1 = _mm512_load_si512(gy.first), y2 = _mm512_load_si512(gy.second);
+  const __m512i z1 = _mm512_load_si512(gz.first), z2 = _mm512_load_si512(gz.second);
+  const __m512d vcx = _mm512_set1_pd(cx), vcy = _mm512_set1_pd(cy);
+  const __m512d vsign = _mm512_set1_pd(sign), vc = _mm512_set1_pd(c), vs = _mm512_set1_pd(s);
+  __m512 lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = _mm512_set1_ps(out->lo[a]);
+    hi[a] = _mm512_set1_ps(out->hi[a]);
+  }
+  const float* src = reinterpret_cast<const float*>(p);  // 3 floats per point
+  const std::size_t blocks = n / 16;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    const float* q = src + 48 * b;
+    const __m512 a0 = _mm512_loadu_ps(q), a1 = _mm512_loadu_ps(q + 16),
+                 a2 = _mm512_loadu_ps(q + 32);
+    const __m512 x =
+        _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(a0, x1, a1), gx.mask, x2, a2);
+    const __m512 y =
+        _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(a0, y1, a1), gy.mask, y2, a2);
+    const __m512 z =
+        _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(a0, z1, a1), gz.mask, z2, a2);
+    __m256 mx[2], my[2];
+    for (int h = 0; h < 2; ++h) {
+      const __m512d xd = _mm512_cvtps_pd(h == 0 ? _mm512_castps512_ps256(x) : High256(x));
+      const __m512d yd = _mm512_cvtps_pd(h == 0 ? _mm512_castps512_ps256(y) : High256(y));
+      const __m512d dx = _mm512_mul_pd(vsign, _mm512_sub_pd(xd, vcx));
+      const __m512d dy = _mm512_sub_pd(yd, vcy);
+      mx[h] = _mm512_cvtpd_ps(
+          _mm512_sub_pd(_mm512_add_pd(vcx, _mm512_mul_pd(vc, dx)), _mm512_mul_pd(vs, dy)));
+      my[h] = _mm512_cvtpd_ps(
+          _mm512_add_pd(_mm512_add_pd(vcy, _mm512_mul_pd(vs, dx)), _mm512_mul_pd(vc, dy)));
+    }
+    const __m512 v[3] = {Join256(mx[0], mx[1]), Join256(my[0], my[1]), z};
+    float* dst[3] = {out->x.data(), out->y.data(), out->z.data()};
+    for (int a = 0; a < 3; ++a) {
+      _mm512_storeu_ps(dst[a] + 16 * b, v[a]);
+      lo[a] = _mm512_min_ps(lo[a], v[a]);
+      hi[a] = _mm512_max_ps(hi[a], v[a]);
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    alignas(64) float l[16], h[16];
+    _mm512_store_ps(l, lo[a]);
+    _mm512_store_ps(h, hi[a]);
+    for (int k = 0; k < 16; ++k) {
+      out->lo[a] = std::min(out->lo[a], l[k]);
+      out->hi[a] = std::max(out->hi[a], h[k]);
+    }
+  }
+  MoveRange(p, 16 * blocks, n, cx, cy, sign, c, s, out);
+}
+
+// 16 points per step: p = moved - origin and its voxel in SoA, then interleaved with
+// permutes: voxel rows (0, ix, iy, iz), the AoS positions, and with colours the 6-float rows.
+__attribute__((target("avx512f"))) void Input512(const MovedPoints& m,
+                                                 const Eigen::Vector3f* colors, std::size_t n,
+                                                 const float origin[3], float scale,
+                                                 const double q0[3], float* f, std::int32_t* vx) {
+  // Voxel vector j (ints 16 j ...): point 4 j + l / 4, slot l % 4 (0 | x | y | z).
+  alignas(64) std::int32_t vidx[4][16];
+  std::uint16_t vxy = 0, vz = 0;
+  for (int l = 0; l < 16; ++l) {
+    const int slot = l % 4;
+    if (slot == 1 || slot == 2) vxy = static_cast<std::uint16_t>(vxy | (1u << l));
+    if (slot == 3) vz = static_cast<std::uint16_t>(vz | (1u << l));
+  }
+  for (int j = 0; j < 4; ++j) {
+    for (int l = 0; l < 16; ++l) {
+      const int point = 4 * j + l / 4, slot = l % 4;
+      vidx[j][l] = slot == 2 ? 16 + point : point;  // y from the second source
+    }
+  }
+  // Position vector b (floats 16 b ...): flat 16 b + l = 3 i + a.
+  alignas(64) std::int32_t pidx[3][16];
+  std::uint16_t pz[3] = {0, 0, 0};
+  for (int b = 0; b < 3; ++b) {
+    for (int l = 0; l < 16; ++l) {
+      const int flat = 16 * b + l, i = flat / 3, a = flat % 3;
+      pidx[b][l] = a == 1 ? 16 + i : i;
+      if (a == 2) pz[b] = static_cast<std::uint16_t>(pz[b] | (1u << l));
+    }
+  }
+  // Feature vector j (floats 16 j ... of the 6-float rows): position flat 3 i + a or colour
+  // flat 3 i + a - 3, from the pair of AoS vectors starting at vector base[j].
+  alignas(64) std::int32_t fp[6][16], fc[6][16];
+  std::uint16_t from_colour[6] = {0, 0, 0, 0, 0, 0};
+  int base[6];
+  for (int j = 0; j < 6; ++j) {
+    base[j] = std::min((16 * j / 6) * 3 / 16, 1);
+    for (int l = 0; l < 16; ++l) {
+      const int flat = 16 * j + l, i = flat / 6, a = flat % 6;
+      const int src = 3 * i + (a < 3 ? a : a - 3) - 16 * base[j];
+      fp[j][l] = a < 3 ? src : 0;
+      fc[j][l] = a < 3 ? 0 : src;
+      if (a >= 3) from_colour[j] = static_cast<std::uint16_t>(from_colour[j] | (1u << l));
+    }
+  }
+  const __m512 o[3] = {_mm512_set1_ps(origin[0]), _mm512_set1_ps(origin[1]),
+                       _mm512_set1_ps(origin[2])};
+  const __m512d vq0[3] = {_mm512_set1_pd(q0[0]), _mm512_set1_pd(q0[1]), _mm512_set1_pd(q0[2])};
+  const __m512 vscale = _mm512_set1_ps(scale), half = _mm512_set1_ps(0.5f);
+  const float* src[3] = {m.x.data(), m.y.data(), m.z.data()};
+  const float* col = reinterpret_cast<const float*>(colors);
+  const int C = colors ? 6 : 3;
+  const std::size_t blocks = n / 16;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    __m512 pos[3];
+    __m512i iv[3];
+    for (int a = 0; a < 3; ++a) {
+      pos[a] = _mm512_sub_ps(_mm512_loadu_ps(src[a] + 16 * b), o[a]);
+      const __m512 q = _mm512_mul_ps(pos[a], vscale);
+      const __m256i lo =
+          _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_cvtps_pd(_mm512_castps512_ps256(q)), vq0[a]));
+      const __m256i hi = _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_cvtps_pd(High256(q)), vq0[a]));
+      iv[a] = _mm512_inserti64x4(_mm512_castsi256_si512(lo), hi, 1);
+    }
+    std::int32_t* vo = vx + 64 * b;
+    for (int j = 0; j < 4; ++j) {
+      const __m512i idx = _mm512_load_si512(vidx[j]);
+      const __m512i xy = _mm512_maskz_permutex2var_epi32(vxy, iv[0], idx, iv[1]);
+      _mm512_storeu_si512(vo + 16 * j, _mm512_mask_permutexvar_epi32(xy, vz, idx, iv[2]));
+    }
+    __m512 aos[4];
+    for (int k = 0; k < 3; ++k) {
+      const __m512i idx = _mm512_load_si512(pidx[k]);
+      aos[k] = _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(pos[0], idx, pos[1]), pz[k], idx,
+                                          pos[2]);
+    }
+    float* fo = f + static_cast<std::size_t>(C) * 16 * b;
+    if (!colors) {
+      for (int k = 0; k < 3; ++k) _mm512_storeu_ps(fo + 16 * k, aos[k]);
+      continue;
+    }
+    aos[3] = aos[2];
+    __m512 rgb[4];
+    for (int k = 0; k < 3; ++k)
+      rgb[k] = _mm512_sub_ps(_mm512_loadu_ps(col + 48 * b + 16 * k), half);
+    rgb[3] = rgb[2];
+    for (int j = 0; j < 6; ++j) {
+      const int k = base[j];
+      const __m512 tp = _mm512_permutex2var_ps(aos[k], _mm512_load_si512(fp[j]), aos[k + 1]);
+      const __m512 tc = _mm512_permutex2var_ps(rgb[k], _mm512_load_si512(fc[j]), rgb[k + 1]);
+      _mm512_storeu_ps(fo + 16 * j, _mm512_mask_blend_ps(from_colour[j], tp, tc));
+    }
+  }
+  InputRange(m, colors, 16 * blocks, n, origin, scale, q0, f, vx);
+}
+#endif
+
+}  // namespace
+
+void MoveScenePoints(const Eigen::Vector3f* points, std::size_t n, double cx, double cy,
+                     double sign, double cos_theta, double sin_theta, MovedPoints* out,
+                     HeadsIsa isa) {
+  out->x.resize(n);
+  out->y.resize(n);
+  out->z.resize(n);
+  for (int a = 0; a < 3; ++a) {
+    out->lo[a] = INFINITY;
+    out->hi[a] = -INFINITY;
+  }
+#if defined(__x86_64__)
+  if (Resolve(isa) == HeadsIsa::kAvx512) {
+    Move512(points, n, cx, cy, sign, cos_theta, sin_theta, out);
+    return;
+  }
+#else
+  (void)Resolve(isa);
+#endif
+  MoveRange(points, 0, n, cx, cy, sign, cos_theta, sin_theta, out);
+}
+
+void WriteMovedNetworkInput(const MovedPoints& moved, const Eigen::Vector3f* colors, std::size_t n,
+                            const float origin[3], float scale, const float qmin[3],
+                            float* features, std::int32_t* voxel, HeadsIsa isa) {
+  const double q0[3] = {qmin[0], qmin[1], qmin[2]};
+#if defined(__x86_64__)
+  if (Resolve(isa) == HeadsIsa::kAvx512) {
+    Input512(moved, colors, n, origin, scale, q0, features, voxel);
+    return;
+  }
+#else
+  (void)Resolve(isa);
+#endif
+  InputRange(moved, colors, 0, n, origin, scale, q0, features, voxel);
 }
 
 }  // namespace dimr::nn::stage1_heads

@@ -52,6 +52,10 @@ struct RowLayout {
 // Writes h.voxels x layout.stride floats to `rows`.
 void InputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, int k, int rotations,
                     float* rows);
+// SoftmaxInPlace and InputFrameRows block by block (a block's probabilities are still in cache
+// when its rows are written): the same numbers as the two calls.
+void SoftmaxToInputFrameRows(const VoxelHeads& h, const RowLayout& layout, bool mirror, int k,
+                             int rotations, float* rows, HeadsIsa isa = HeadsIsa::kAuto);
 
 // One pass: the probability tables per voxel (rows = voxels, out->point_row = point_to_voxel
 // [n]); every point gets its voxel's class (argmax, from SoftmaxInPlace) and offset. Sizes
@@ -72,4 +76,23 @@ void AverageInVoxelOrder(const std::int64_t* voxel_offsets, std::int64_t m0,
                          const std::vector<const std::int32_t*>& voxel_of, const RowLayout& layout,
                          Stage1Output* out, HeadsIsa isa = HeadsIsa::kAuto);
 
+// The moved scene of a test-time-augmentation pass, structure of arrays (n floats each).
+struct MovedPoints {
+  std::vector<float> x, y, z;
+  float lo[3], hi[3];  // bounding box of the moved points
+};
+// Moves every point by (x, y) -> centre + R(theta) (sign (x - cx), y - cy), z kept: in double,
+// rounded to float, per point exactly `float(cx + cos * dx - sin * dy)` and `float(cy + sin * dx
+// + cos * dy)` with dx = sign * (x - cx), dy = y - cy (so every kernel gives the same bits).
+// Sizes `out`; the box of non-finite moved points is not finite.
+void MoveScenePoints(const Eigen::Vector3f* points, std::size_t n, double cx, double cy,
+                     double sign, double cos_theta, double sin_theta, MovedPoints* out,
+                     HeadsIsa isa = HeadsIsa::kAuto);
+// The network input of moved points, MakeStage1NetworkInput's arithmetic: p = moved - origin
+// (float), features [n, 3 or 6] = (p [, colour - 0.5]), voxel [n, 4] = (0, trunc(double(p *
+// scale) - qmin)) per axis (qmin = the box corner's (lo - origin) * scale, so every
+// difference is >= 0). `colors` null: 3 channels.
+void WriteMovedNetworkInput(const MovedPoints& moved, const Eigen::Vector3f* colors, std::size_t n,
+                            const float origin[3], float scale, const float qmin[3],
+                            float* features, std::int32_t* voxel, HeadsIsa isa = HeadsIsa::kAuto);
 }  // namespace dimr::nn::stage1_heads

@@ -136,22 +136,35 @@ class Stage1NetImpl : public torch::nn::Module {
 
   // The heads at inference (eval mode only): Linear -> BatchNorm -> LeakyReLU folded into one
   // addmm per MLP (W' = diag(g / sqrt(var + eps)) W, b' = (b - mean) g / sqrt(var + eps) +
-  // beta), the same function as Heads() up to float rounding and one op instead of three.
-  HeadOutput HeadsFolded(const torch::Tensor& f) {
-    auto mlp = [&](torch::nn::Sequential& seq, torch::nn::Linear& last) {
+  // beta), the same function as Heads() up to float rounding and one op instead of three. The
+  // folded weights are computed once per prediction (FoldHeads), not once per pass.
+  struct FoldedHeads {
+    torch::Tensor offset_w, offset_b, angle_w, angle_b;  // W'^T [in, hidden], b' [hidden]
+  };
+  FoldedHeads FoldHeads() {
+    auto fold = [](torch::nn::Sequential& seq, torch::Tensor* w, torch::Tensor* b) {
       auto lin = seq[0]->as<torch::nn::Linear>();
       auto bn = seq[1]->as<torch::nn::BatchNorm1d>();
       const torch::Tensor k = bn->weight / torch::sqrt(bn->running_var + bn->options.eps());
-      const torch::Tensor w = lin->weight * k.unsqueeze(1);
-      const torch::Tensor b = (lin->bias - bn->running_mean) * k + bn->bias;
-      const torch::Tensor hidden = torch::leaky_relu(torch::addmm(b, f, w.t()), 0.01);
+      *w = (lin->weight * k.unsqueeze(1)).t();
+      *b = (lin->bias - bn->running_mean) * k + bn->bias;
+    };
+    FoldedHeads f;
+    fold(offset, &f.offset_w, &f.offset_b);
+    fold(angle, &f.angle_w, &f.angle_b);
+    return f;
+  }
+  HeadOutput HeadsFolded(const torch::Tensor& f, const FoldedHeads& w) {
+    auto mlp = [&](const torch::Tensor& wt, const torch::Tensor& b, torch::nn::Linear& last) {
+      torch::Tensor hidden = torch::addmm(b, f, wt);
+      torch::leaky_relu_(hidden, 0.01);
       return last->forward(hidden);
     };
     HeadOutput h;
     h.features = f;
     h.semantic = linear->forward(f);
-    h.offset = mlp(offset, offset_linear);
-    h.heading = mlp(angle, angle_linear);
+    h.offset = mlp(w.offset_w, w.offset_b, offset_linear);
+    h.heading = mlp(w.angle_w, w.angle_b, angle_linear);
     return h;
   }
 
@@ -326,15 +339,15 @@ struct Stage1Model::Impl {
   // The U-Net on voxelised points; `voxel_heads` runs the heads on its voxel rows (inference)
   // instead of the gathered point rows (training: BatchNorm statistics are per point).
   struct Pass {
-    // [N, ...] point rows, or [M, ...] voxel rows; voxel heads (CPU, contiguous) hold
-    // probabilities: h.semantic the semantic softmax, the first 12 columns of h.heading the
-    // bin softmax (written over the logits).
+    // [N, ...] point rows, or [M, ...] voxel rows (voxel heads: CPU, contiguous logits, which
+    // stage1_heads' softmax turns into probabilities in place).
     HeadOutput h;
     torch::Tensor point_to_voxel, voxel_offsets, voxel_points;  // voxel heads: the map, int64
-    std::vector<int> argmax;                                    // voxel heads: class per voxel
   };
+  // `heads` (voxel heads): the folded head weights of this prediction.
   Pass Run(const torch::Tensor& voxel, const torch::Tensor& features, int64_t batch_size,
-           bool voxel_heads, Stage1Timing* timing) {
+           const Stage1NetImpl::FoldedHeads* heads, Stage1Timing* timing) {
+    const bool voxel_heads = heads != nullptr;
     const auto t0 = std::chrono::steady_clock::now();
     // Every U-Net level halves the grid (k2 s2): at least 2^(levels - 1) voxels per axis, or a
     // flat room (1.37 m high at 5 cm: 28 voxels for 6 levels), a plane or one point could not
@@ -348,15 +361,13 @@ struct Stage1Model::Impl {
     const auto t2 = std::chrono::steady_clock::now();
     Pass pass;
     if (voxel_heads) {
-      pass.h = net->HeadsFolded(y.features());
+      pass.h = net->HeadsFolded(y.features(), *heads);
       const auto cpu = [](const torch::Tensor& t) { return t.to(torch::kCPU).contiguous(); };
       pass.h.semantic = cpu(pass.h.semantic);
       pass.h.offset = cpu(pass.h.offset);
       pass.h.heading = cpu(pass.h.heading);
-      // The semantic and heading-bin softmax in place (stage1_heads: one pass over the rows,
-      // no slice copies; ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
-      pass.argmax.resize(static_cast<std::size_t>(pass.h.semantic.size(0)));
-      stage1_heads::SoftmaxInPlace(HeadsView(pass), pass.argmax.data(), HeadsIsaInUse());
+      // Logits: the caller takes the softmax (stage1_heads), alone for one pass or fused with
+      // the input-frame rows of a test-time-augmentation pass.
       pass.point_to_voxel = cpu(v.map.point_to_voxel.to(torch::kInt64));
       pass.voxel_offsets = cpu(v.map.voxel_offsets.to(torch::kInt64));
       pass.voxel_points = cpu(v.map.voxel_points.to(torch::kInt64));
@@ -374,7 +385,7 @@ struct Stage1Model::Impl {
   }
 
   HeadOutput Forward(const BatchTensors& t, Stage1Timing* timing) {
-    return Run(t.voxel, t.features, t.batch_size, /*voxel_heads=*/false, timing).h;
+    return Run(t.voxel, t.features, t.batch_size, /*heads=*/nullptr, timing).h;
   }
 
   // One network pass on a scene view (eval mode, no gradient: the caller's guard), with the
@@ -382,7 +393,8 @@ struct Stage1Model::Impl {
   // row-wise function of its input (eval-mode BatchNorm uses the running statistics), so a
   // point's outputs are its voxel's row: the same numbers as heads on the gathered point
   // features, for ~3-5x fewer rows at 5 cm (a 100k-point room has ~25k voxels).
-  Pass ForwardSceneVoxels(const ScenePoints& scene, Stage1Timing* timing, NetworkFrame* frame) {
+  Pass ForwardSceneVoxels(const ScenePoints& scene, const Stage1NetImpl::FoldedHeads& heads,
+                          Stage1Timing* timing, NetworkFrame* frame) {
     // MakeStage1NetworkInput's numbers written straight into uninitialised tensors (no zero
     // fill, no copy).
     // (An empty scene gets empty tensors; WriteStage1NetworkInput refuses it by name.)
@@ -392,7 +404,7 @@ struct Stage1Model::Impl {
     std::array<std::int64_t, 3> extent;
     *frame = WriteStage1NetworkInput(scene, config.input, &extent, features.data_ptr<float>(),
                                      voxel.data_ptr<std::int32_t>());
-    return Run(voxel, features.to(device), 1, /*voxel_heads=*/true, timing);
+    return Run(voxel, features.to(device), 1, &heads, timing);
   }
 
   // The same for the scene moved by p -> centre + R(theta) (sign * (p - centre)) in x-y (z
@@ -402,23 +414,17 @@ struct Stage1Model::Impl {
   // arithmetic (the same numbers; Stage1Heads.AugmentedPassesMatchPerPointAccumulation
   // compares with Predict on the moved points). `moved` is scratch.
   Pass ForwardMovedScene(const ScenePoints& scene, const Eigen::Vector2d& centre, double sign,
-                         double theta, float floor_z, std::vector<Eigen::Vector3f>* moved,
-                         Stage1Timing* timing) {
+                         double theta, float floor_z, const Stage1NetImpl::FoldedHeads& heads,
+                         stage1_heads::MovedPoints* moved, Stage1Timing* timing) {
     const std::size_t n = scene.size;
-    const double c = std::cos(theta), s = std::sin(theta);
-    moved->resize(n);
-    Eigen::Vector3f* mp = moved->data();
-    Eigen::Vector3f lo = Eigen::Vector3f::Constant(INFINITY);
-    Eigen::Vector3f hi = Eigen::Vector3f::Constant(-INFINITY);
-    for (std::size_t i = 0; i < n; ++i) {
-      const double x = sign * (scene.points[i].x() - centre.x());
-      const double y = scene.points[i].y() - centre.y();
-      mp[i] = Eigen::Vector3f(static_cast<float>(centre.x() + c * x - s * y),
-                              static_cast<float>(centre.y() + s * x + c * y), scene.points[i].z());
-      lo = lo.cwiseMin(mp[i]);
-      hi = hi.cwiseMax(mp[i]);
-    }
+    stage1_heads::MoveScenePoints(scene.points, n, centre.x(), centre.y(), sign, std::cos(theta),
+                                  std::sin(theta), moved, HeadsIsaInUse());
+    const Eigen::Vector3f lo(moved->lo[0], moved->lo[1], moved->lo[2]);
+    const Eigen::Vector3f hi(moved->hi[0], moved->hi[1], moved->hi[2]);
     const std::string who = "stage1 input: scene '" + scene.name + "'";
+    if (config.input.use_rgb && scene.colors == nullptr) {
+      throw InvalidArgument(who + ": the model reads colours and the scene has none");
+    }
     if (!lo.allFinite() || !hi.allFinite()) {
       throw InvalidArgument(who + ": a rotated point is not finite");
     }
@@ -443,23 +449,10 @@ struct Stage1Model::Impl {
     }
     torch::Tensor voxel = torch::empty({static_cast<int64_t>(n), 4}, torch::kInt32);
     torch::Tensor features = torch::empty({static_cast<int64_t>(n), C}, torch::kFloat32);
-    float* f = features.data_ptr<float>();
-    std::int32_t* vx = voxel.data_ptr<std::int32_t>();
-    const double q0[3] = {qmin.x(), qmin.y(), qmin.z()};
-    for (std::size_t i = 0; i < n; ++i) {
-      const Eigen::Vector3f p = mp[i] - origin;
-      const Eigen::Vector3f q = p * scale;
-      vx[4 * i] = 0;
-      for (int a = 0; a < 3; ++a) {
-        f[C * i + a] = p[a];
-        // floor(q - qmin) of a non-negative difference (q >= qmin) is its truncation.
-        vx[4 * i + 1 + a] = static_cast<std::int32_t>(static_cast<double>(q[a]) - q0[a]);
-      }
-      if (input.use_rgb) {
-        for (int a = 0; a < 3; ++a) f[C * i + 3 + a] = scene.colors[i][a] - 0.5f;
-      }
-    }
-    return Run(voxel, features.to(device), 1, /*voxel_heads=*/true, timing);
+    stage1_heads::WriteMovedNetworkInput(
+        *moved, input.use_rgb ? scene.colors : nullptr, n, origin.data(), scale, qmin.data(),
+        features.data_ptr<float>(), voxel.data_ptr<std::int32_t>(), HeadsIsaInUse());
+    return Run(voxel, features.to(device), 1, &heads, timing);
   }
 
   // The voxel-head tensors of a pass as the raw views stage1_heads reads.
@@ -598,7 +591,8 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
   const stage1_heads::RowLayout layout(impl_->config.num_classes);
   const int passes = rotations * (mirror ? 2 : 1);
   Stage1Timing t;
-  const Impl::Pass plain = impl_->ForwardSceneVoxels(scene, &t, &out.frame);
+  const Stage1NetImpl::FoldedHeads heads = impl_->net->FoldHeads();
+  const Impl::Pass plain = impl_->ForwardSceneVoxels(scene, heads, &t, &out.frame);
   add_network_time(t);
   if (with_features) {
     const torch::Tensor f = plain.h.features.to(torch::kCPU).contiguous();
@@ -611,7 +605,11 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     }
   }
   if (passes == 1) {
-    stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), plain.argmax.data(),
+    // The semantic and heading-bin softmax in place (one sweep over the rows, no slice copies;
+    // ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
+    std::vector<int> argmax(static_cast<std::size_t>(plain.h.semantic.size(0)));
+    stage1_heads::SoftmaxInPlace(Impl::HeadsView(plain), argmax.data(), HeadsIsaInUse());
+    stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), argmax.data(),
                                  plain.point_to_voxel.data_ptr<int64_t>(), n, &out);
   } else {
     // Every pass's voxel rows in the input frame, and for every further pass the voxel of
@@ -622,7 +620,8 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     auto add_rows = [&](const Impl::Pass& pass, bool mirrored, int k, int of_rotations) {
       const stage1_heads::VoxelHeads h = Impl::HeadsView(pass);
       rows.emplace_back(new float[static_cast<std::size_t>(h.voxels) * layout.stride]);
-      stage1_heads::InputFrameRows(h, layout, mirrored, k, of_rotations, rows.back().get());
+      stage1_heads::SoftmaxToInputFrameRows(h, layout, mirrored, k, of_rotations, rows.back().get(),
+                                            HeadsIsaInUse());
     };
     add_rows(plain, false, 0, 1);
     voxel_of.emplace_back();  // the plain pass: its voxel order itself
@@ -630,13 +629,13 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     Eigen::Vector2d centre = Eigen::Vector2d::Zero();
     for (std::size_t i = 0; i < n; ++i) centre += scene.points[i].head<2>().cast<double>();
     centre /= static_cast<double>(n);
-    std::vector<Eigen::Vector3f> moved;
+    stage1_heads::MovedPoints moved;
     for (int m = 0; m < (mirror ? 2 : 1); ++m) {
       for (int k = 0; k < rotations; ++k) {
         if (k == 0 && m == 0) continue;  // the plain pass above
         const Impl::Pass pass =
             impl_->ForwardMovedScene(scene, centre, m == 1 ? -1.0 : 1.0, 2.0 * M_PI * k / rotations,
-                                     out.frame.floor_z, &moved, &t);
+                                     out.frame.floor_z, heads, &moved, &t);
         add_network_time(t);
         add_rows(pass, m == 1, k, rotations);
         const int64_t* p2v = pass.point_to_voxel.data_ptr<int64_t>();

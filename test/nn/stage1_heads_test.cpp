@@ -452,5 +452,92 @@ TEST(Stage1Heads, NetworkFrameMatchesTheSortedSweep) {
   EXPECT_NEAR(EstimateNetworkFrame(clouds[5]).floor_z, 0.7, 0.02);  // outliers above ignored
 }
 
+// ---------------------------------------------------------------- moved scenes
+// The moved points and the network input of a TTA pass: every kernel this CPU runs gives the
+// bits of the point-by-point formula (the code they replaced), for point counts around the
+// 16-point blocks, with and without colours, mirrored or not; huge coordinates overflow to a
+// non-finite box.
+TEST(Stage1Heads, MovedSceneKernelsGiveTheFormulasBits) {
+  std::mt19937_64 rng(23);
+  std::uniform_real_distribution<float> u(-4, 9);
+  for (std::size_t n : {0, 1, 15, 16, 17, 47, 1000}) {
+    std::vector<Eigen::Vector3f> p(n), c(n);
+    for (auto& q : p) q = Eigen::Vector3f(u(rng), u(rng), 0.3f * u(rng));
+    for (auto& q : c) q = Eigen::Vector3f(u(rng), u(rng), u(rng)) / 9.0f;
+    for (double sign : {1.0, -1.0}) {
+      const double theta = sign > 0 ? 2 * M_PI * 5 / 12 : 2 * M_PI * 7 / 12;
+      const double cx = 1.234567, cy = -0.7654321, co = std::cos(theta), si = std::sin(theta);
+      // The reference: the formulas as ForwardMovedScene wrote them per point.
+      std::vector<float> wx(n), wy(n);
+      float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+      for (std::size_t i = 0; i < n; ++i) {
+        const double x = sign * (p[i].x() - cx);
+        const double y = p[i].y() - cy;
+        wx[i] = static_cast<float>(cx + co * x - si * y);
+        wy[i] = static_cast<float>(cy + si * x + co * y);
+        const float v[3] = {wx[i], wy[i], p[i].z()};
+        for (int a = 0; a < 3; ++a) {
+          lo[a] = std::min(lo[a], v[a]);
+          hi[a] = std::max(hi[a], v[a]);
+        }
+      }
+      const float origin[3] = {0.5f * (lo[0] + hi[0]), 0.5f * (lo[1] + hi[1]), -0.25f};
+      const float scale = 20.0f;
+      float qmin[3];
+      for (int a = 0; a < 3; ++a) qmin[a] = (lo[a] - origin[a]) * scale;
+      for (bool rgb : {false, true}) {
+        const int C = rgb ? 6 : 3;
+        std::vector<float> wf(n * C);
+        std::vector<std::int32_t> wv(n * 4);
+        for (std::size_t i = 0; i < n; ++i) {
+          const float m[3] = {wx[i], wy[i], p[i].z()};
+          wv[4 * i] = 0;
+          for (int a = 0; a < 3; ++a) {
+            const float d = m[a] - origin[a];
+            wf[C * i + a] = d;
+            wv[4 * i + 1 + a] = static_cast<std::int32_t>(static_cast<double>(d * scale) -
+                                                          static_cast<double>(qmin[a]));
+            if (rgb) wf[C * i + 3 + a] = c[i][a] - 0.5f;
+          }
+        }
+        for (auto isa : stage1_heads::SupportedHeadsIsas()) {
+          SCOPED_TRACE(std::string(stage1_heads::HeadsIsaName(isa)) + " n " + std::to_string(n) +
+                       (rgb ? " rgb" : "") + (sign < 0 ? " mirrored" : ""));
+          stage1_heads::MovedPoints m;
+          stage1_heads::MoveScenePoints(p.data(), n, cx, cy, sign, co, si, &m, isa);
+          ASSERT_EQ(m.x.size(), n);
+          for (std::size_t i = 0; i < n; ++i) {
+            ASSERT_EQ(m.x[i], wx[i]) << i;  // exact: the same operations in the same order
+            ASSERT_EQ(m.y[i], wy[i]) << i;
+            ASSERT_EQ(m.z[i], p[i].z()) << i;
+          }
+          for (int a = 0; a < 3; ++a) {
+            EXPECT_EQ(m.lo[a], lo[a]);
+            EXPECT_EQ(m.hi[a], hi[a]);
+          }
+          std::vector<float> f(n * C, -7.0f);
+          std::vector<std::int32_t> v(n * 4, -7);
+          stage1_heads::WriteMovedNetworkInput(m, rgb ? c.data() : nullptr, n, origin, scale, qmin,
+                                               f.data(), v.data(), isa);
+          for (std::size_t k = 0; k < n * C; ++k) ASSERT_EQ(f[k], wf[k]) << k;
+          for (std::size_t k = 0; k < n * 4; ++k) ASSERT_EQ(v[k], wv[k]) << k;
+        }
+      }
+    }
+  }
+  // A coordinate that overflows float when moved gives a non-finite box on every kernel.
+  std::vector<Eigen::Vector3f> far(40, Eigen::Vector3f(1, 2, 3));
+  far[33].x() = 3.0e38f;
+  far[33].y() = 3.0e38f;
+  for (auto isa : stage1_heads::SupportedHeadsIsas()) {
+    stage1_heads::MovedPoints m;
+    stage1_heads::MoveScenePoints(far.data(), far.size(), 0, 0, 1, std::cos(0.7), std::sin(0.7), &m,
+                                  isa);
+    EXPECT_FALSE(std::isfinite(m.hi[0]) && std::isfinite(m.hi[1]) && std::isfinite(m.lo[0]) &&
+                 std::isfinite(m.lo[1]))
+        << stage1_heads::HeadsIsaName(isa);
+  }
+}
+
 }  // namespace
 }  // namespace dimr::nn
