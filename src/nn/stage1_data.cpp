@@ -17,6 +17,7 @@
 
 #include "dimr/core/config_fields.h"
 #include "dimr/geometry/error.h"
+#include "stage1_heads.h"
 
 namespace dimr::nn {
 namespace {
@@ -961,7 +962,6 @@ NetworkFrame WriteStage1NetworkInput(const ScenePoints& scene, const Stage1Input
   Eigen::Vector3f lo, hi;
   CheckedBounds(pts, input.use_rgb ? scene.colors : nullptr, n, who, &lo, &hi);
   const NetworkFrame frame = FrameInBounds(pts, n, lo, hi);
-  const int C = input.feature_channels();
   // The same float arithmetic as MakeStage1Batch: p - origin, then times the scale. Float
   // subtraction and multiplication by a positive scale are monotone, so the smallest / largest
   // (p - origin) * scale over the points are those of the box corners lo / hi: the voxel
@@ -981,22 +981,11 @@ NetworkFrame WriteStage1NetworkInput(const ScenePoints& scene, const Stage1Input
     }
     (*extent)[c] = static_cast<std::int64_t>(span);
   }
-  const double q0[3] = {qmin.x(), qmin.y(), qmin.z()};
-  for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f p = pts[i] - frame.origin;
-    const Eigen::Vector3f q = p * scale;
-    float* f = features + C * i;
-    std::int32_t* vx = voxel + 4 * i;
-    vx[0] = 0;
-    for (int c = 0; c < 3; ++c) {
-      f[c] = p[c];
-      // floor of a difference >= 0 (q >= qmin): its truncation, without a libm call.
-      vx[1 + c] = static_cast<std::int32_t>(static_cast<double>(q[c]) - q0[c]);
-    }
-    if (input.use_rgb) {
-      for (int c = 0; c < 3; ++c) f[3 + c] = scene.colors[i][c] - 0.5f;
-    }
-  }
+  // Per point: p - origin, and the voxel floor(q - qmin) of q = p * scale as the truncation of
+  // a difference >= 0 (no libm call); 16 points per step on AVX-512 (the same bits).
+  stage1_heads::WriteNetworkInput(pts, input.use_rgb ? scene.colors : nullptr, n,
+                                  frame.origin.data(), scale, qmin.data(), features, voxel,
+                                  stage1_heads::HeadsIsaOfSparsePath());
   return frame;
 }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstring>
 #include <string>
+#include <type_traits>
 
 #if defined(__x86_64__)
 // GCC 12 warns inside its own AVX-512 headers (the unused source operand of an unmasked
@@ -19,6 +20,7 @@
 #endif
 
 #include "dimr/core/error.h"
+#include "dimr/nn/sparse_ops.h"
 
 namespace dimr::nn::stage1_heads {
 namespace {
@@ -780,15 +782,28 @@ void MoveRange(const Eigen::Vector3f* p, std::size_t begin, std::size_t end, dou
   }
 }
 
-void InputRange(const MovedPoints& m, const Eigen::Vector3f* colors, std::size_t begin,
+// Where the points of the network input come from: the moved scene's SoA rows, or the
+// scene's own AoS points.
+struct SoaPoints {
+  const float* x;
+  const float* y;
+  const float* z;
+  float At(std::size_t i, int a) const { return (a == 0 ? x : a == 1 ? y : z)[i]; }
+};
+struct AosPoints {
+  const float* p;  // 3 floats per point
+  float At(std::size_t i, int a) const { return p[3 * i + a]; }
+};
+
+template <class Points>
+void InputRange(const Points& src, const Eigen::Vector3f* colors, std::size_t begin,
                 std::size_t end, const float origin[3], float scale, const double q0[3], float* f,
                 std::int32_t* vx) {
   const int C = colors ? 6 : 3;
-  const float* src[3] = {m.x.data(), m.y.data(), m.z.data()};
   for (std::size_t i = begin; i < end; ++i) {
     vx[4 * i] = 0;
     for (int a = 0; a < 3; ++a) {
-      const float p = src[a][i] - origin[a];
+      const float p = src.At(i, a) - origin[a];
       const float q = p * scale;
       f[C * i + a] = p;
       // trunc(q - qmin) of a non-negative difference is its floor.
@@ -891,10 +906,18 @@ __attribute__((target("avx512f"))) void Move512(const Eigen::Vector3f* p, std::s
 
 // 16 points per step: p = moved - origin and its voxel in SoA, then interleaved with
 // permutes: voxel rows (0, ix, iy, iz), the AoS positions, and with colours the 6-float rows.
-__attribute__((target("avx512f"))) void Input512(const MovedPoints& m,
+template <class Points>
+__attribute__((target("avx512f"))) void Input512(const Points& points,
                                                  const Eigen::Vector3f* colors, std::size_t n,
                                                  const float origin[3], float scale,
                                                  const double q0[3], float* f, std::int32_t* vx) {
+  constexpr bool kAos = std::is_same_v<Points, AosPoints>;
+  const Gather16 g[3] = {AosToSoa(0), AosToSoa(1), AosToSoa(2)};
+  __m512i g1[3], g2[3];
+  for (int a = 0; a < 3; ++a) {
+    g1[a] = _mm512_load_si512(g[a].first);
+    g2[a] = _mm512_load_si512(g[a].second);
+  }
   // Voxel vector j (ints 16 j ...): point 4 j + l / 4, slot l % 4 (0 | x | y | z).
   alignas(64) std::int32_t vidx[4][16];
   std::uint16_t vxy = 0, vz = 0;
@@ -938,15 +961,28 @@ __attribute__((target("avx512f"))) void Input512(const MovedPoints& m,
                        _mm512_set1_ps(origin[2])};
   const __m512d vq0[3] = {_mm512_set1_pd(q0[0]), _mm512_set1_pd(q0[1]), _mm512_set1_pd(q0[2])};
   const __m512 vscale = _mm512_set1_ps(scale), half = _mm512_set1_ps(0.5f);
-  const float* src[3] = {m.x.data(), m.y.data(), m.z.data()};
   const float* col = reinterpret_cast<const float*>(colors);
   const int C = colors ? 6 : 3;
   const std::size_t blocks = n / 16;
   for (std::size_t b = 0; b < blocks; ++b) {
+    __m512 in[3];
+    if constexpr (kAos) {
+      const float* q = points.p + 48 * b;
+      const __m512 a0 = _mm512_loadu_ps(q), a1 = _mm512_loadu_ps(q + 16),
+                   a2 = _mm512_loadu_ps(q + 32);
+      for (int a = 0; a < 3; ++a) {
+        in[a] =
+            _mm512_mask_permutexvar_ps(_mm512_permutex2var_ps(a0, g1[a], a1), g[a].mask, g2[a], a2);
+      }
+    } else {
+      in[0] = _mm512_loadu_ps(points.x + 16 * b);
+      in[1] = _mm512_loadu_ps(points.y + 16 * b);
+      in[2] = _mm512_loadu_ps(points.z + 16 * b);
+    }
     __m512 pos[3];
     __m512i iv[3];
     for (int a = 0; a < 3; ++a) {
-      pos[a] = _mm512_sub_ps(_mm512_loadu_ps(src[a] + 16 * b), o[a]);
+      pos[a] = _mm512_sub_ps(in[a], o[a]);
       const __m512 q = _mm512_mul_ps(pos[a], vscale);
       const __m256i lo =
           _mm512_cvttpd_epi32(_mm512_sub_pd(_mm512_cvtps_pd(_mm512_castps512_ps256(q)), vq0[a]));
@@ -982,7 +1018,7 @@ __attribute__((target("avx512f"))) void Input512(const MovedPoints& m,
       _mm512_storeu_ps(fo + 16 * j, _mm512_mask_blend_ps(from_colour[j], tp, tc));
     }
   }
-  InputRange(m, colors, 16 * blocks, n, origin, scale, q0, f, vx);
+  InputRange(points, colors, 16 * blocks, n, origin, scale, q0, f, vx);
 }
 #endif
 
@@ -1009,19 +1045,49 @@ void MoveScenePoints(const Eigen::Vector3f* points, std::size_t n, double cx, do
   MoveRange(points, 0, n, cx, cy, sign, cos_theta, sin_theta, out);
 }
 
-void WriteMovedNetworkInput(const MovedPoints& moved, const Eigen::Vector3f* colors, std::size_t n,
-                            const float origin[3], float scale, const float qmin[3],
-                            float* features, std::int32_t* voxel, HeadsIsa isa) {
+namespace {
+
+template <class Points>
+void WriteInput(const Points& points, const Eigen::Vector3f* colors, std::size_t n,
+                const float origin[3], float scale, const float qmin[3], float* features,
+                std::int32_t* voxel, HeadsIsa isa) {
   const double q0[3] = {qmin[0], qmin[1], qmin[2]};
 #if defined(__x86_64__)
   if (Resolve(isa) == HeadsIsa::kAvx512) {
-    Input512(moved, colors, n, origin, scale, q0, features, voxel);
+    Input512(points, colors, n, origin, scale, q0, features, voxel);
     return;
   }
 #else
   (void)Resolve(isa);
 #endif
-  InputRange(moved, colors, 0, n, origin, scale, q0, features, voxel);
+  InputRange(points, colors, 0, n, origin, scale, q0, features, voxel);
+}
+
+}  // namespace
+
+void WriteMovedNetworkInput(const MovedPoints& moved, const Eigen::Vector3f* colors, std::size_t n,
+                            const float origin[3], float scale, const float qmin[3],
+                            float* features, std::int32_t* voxel, HeadsIsa isa) {
+  WriteInput(SoaPoints{moved.x.data(), moved.y.data(), moved.z.data()}, colors, n, origin, scale,
+             qmin, features, voxel, isa);
+}
+
+void WriteNetworkInput(const Eigen::Vector3f* points, const Eigen::Vector3f* colors, std::size_t n,
+                       const float origin[3], float scale, const float qmin[3], float* features,
+                       std::int32_t* voxel, HeadsIsa isa) {
+  WriteInput(AosPoints{reinterpret_cast<const float*>(points)}, colors, n, origin, scale, qmin,
+             features, voxel, isa);
+}
+
+HeadsIsa HeadsIsaOfSparsePath() {
+  switch (ResolveSparseKernelPath()) {
+    case SparseKernelPath::kAvx512:
+      return HeadsIsa::kAvx512;
+    case SparseKernelPath::kAvx2:
+      return HeadsIsa::kAvx2;
+    default:
+      return HeadsIsa::kGeneric;
+  }
 }
 
 }  // namespace dimr::nn::stage1_heads

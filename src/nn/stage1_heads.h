@@ -95,4 +95,11 @@ void MoveScenePoints(const Eigen::Vector3f* points, std::size_t n, double cx, do
 void WriteMovedNetworkInput(const MovedPoints& moved, const Eigen::Vector3f* colors, std::size_t n,
                             const float origin[3], float scale, const float qmin[3],
                             float* features, std::int32_t* voxel, HeadsIsa isa = HeadsIsa::kAuto);
+// The same for the scene's own points (WriteStage1NetworkInput's writing pass).
+void WriteNetworkInput(const Eigen::Vector3f* points, const Eigen::Vector3f* colors, std::size_t n,
+                       const float origin[3], float scale, const float qmin[3], float* features,
+                       std::int32_t* voxel, HeadsIsa isa = HeadsIsa::kAuto);
+// The heads' kernels follow the sparse convolutions' path (DIMR_SPARSE_KERNELS=avx2 times an
+// AVX2 machine's whole pass): AVX-512 -> kAvx512, AVX2 -> kAvx2, GEMM -> kGeneric.
+HeadsIsa HeadsIsaOfSparsePath();
 }  // namespace dimr::nn::stage1_heads

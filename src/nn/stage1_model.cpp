@@ -19,6 +19,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -156,16 +157,39 @@ class Stage1NetImpl : public torch::nn::Module {
   }
   HeadOutput HeadsFolded(const torch::Tensor& f, const FoldedHeads& w) {
     auto mlp = [&](const torch::Tensor& wt, const torch::Tensor& b, torch::nn::Linear& last) {
-      torch::Tensor hidden = torch::addmm(b, f, wt);
+      torch::Tensor hidden = Affine(f, wt, b);
       torch::leaky_relu_(hidden, 0.01);
-      return last->forward(hidden);
+      return Affine(hidden, last->weight.t(), last->bias);
     };
     HeadOutput h;
     h.features = f;
-    h.semantic = linear->forward(f);
+    h.semantic = Affine(f, linear->weight.t(), linear->bias);
     h.offset = mlp(w.offset_w, w.offset_b, offset_linear);
     h.heading = mlp(w.angle_w, w.angle_b, angle_linear);
     return h;
+  }
+
+  // b + x wt, as Linear computes it (addmm, beta = alpha = 1: the bias rows, then the GEMM
+  // accumulates onto them). On the CPU the bias rows are written by a plain row copy and addmm
+  // runs in place on them: ATen's broadcast copy of the bias cost as much as the GEMM itself.
+  static torch::Tensor Affine(const torch::Tensor& x, const torch::Tensor& wt,
+                              const torch::Tensor& b) {
+    if (!x.is_cpu() || x.scalar_type() != torch::kFloat32 || x.dim() != 2) {
+      return torch::addmm(b, x, wt);
+    }
+    const int64_t rows = x.size(0), cols = b.size(0);
+    torch::Tensor out = torch::empty({rows, cols}, x.options());
+    const torch::Tensor bias = b.contiguous();
+    const float* pb = bias.data_ptr<float>();
+    float* po = out.data_ptr<float>();
+    // The first rows one by one, then copies of that block (it stays in L1).
+    const int64_t head = std::min<int64_t>(rows, 64);
+    for (int64_t r = 0; r < head; ++r) std::memcpy(po + r * cols, pb, sizeof(float) * cols);
+    for (int64_t r = head; r < rows; r += head) {
+      std::memcpy(po + r * cols, po, sizeof(float) * cols * std::min(head, rows - r));
+    }
+    torch::addmm_out(out, out, x, wt);
+    return out;
   }
 
   SparseUNet backbone{nullptr};
@@ -311,16 +335,7 @@ namespace {
 // The heads' kernels (softmax, TTA mean) follow the sparse-kernel path in force
 // (DIMR_SPARSE_KERNELS or SetSparseKernelPath), so that forcing avx2 on an AVX-512 machine times an
 // AVX2 machine's whole pass; the GEMM fallback takes the 4-lane kernel. All give the same bits.
-stage1_heads::HeadsIsa HeadsIsaInUse() {
-  switch (ResolveSparseKernelPath()) {
-    case SparseKernelPath::kAvx512:
-      return stage1_heads::HeadsIsa::kAvx512;
-    case SparseKernelPath::kAvx2:
-      return stage1_heads::HeadsIsa::kAvx2;
-    default:
-      return stage1_heads::HeadsIsa::kGeneric;
-  }
-}
+stage1_heads::HeadsIsa HeadsIsaInUse() { return stage1_heads::HeadsIsaOfSparsePath(); }
 }  // namespace
 
 std::string Stage1HeadsKernelsInUse() { return stage1_heads::HeadsIsaName(HeadsIsaInUse()); }

@@ -453,8 +453,9 @@ TEST(Stage1Heads, NetworkFrameMatchesTheSortedSweep) {
 }
 
 // ---------------------------------------------------------------- moved scenes
-// The moved points and the network input of a TTA pass: every kernel this CPU runs gives the
-// bits of the point-by-point formula (the code they replaced), for point counts around the
+// The moved points and the network input of a TTA pass (and of the plain pass, from AoS
+// points): every kernel this CPU runs gives the bits of the point-by-point formula (the code
+// they replaced), for point counts around the
 // 16-point blocks, with and without colours, mirrored or not; huge coordinates overflow to a
 // non-finite box.
 TEST(Stage1Heads, MovedSceneKernelsGiveTheFormulasBits) {
@@ -521,6 +522,15 @@ TEST(Stage1Heads, MovedSceneKernelsGiveTheFormulasBits) {
                                                f.data(), v.data(), isa);
           for (std::size_t k = 0; k < n * C; ++k) ASSERT_EQ(f[k], wf[k]) << k;
           for (std::size_t k = 0; k < n * 4; ++k) ASSERT_EQ(v[k], wv[k]) << k;
+          // The same writer on AoS points (the plain pass: WriteStage1NetworkInput).
+          std::vector<Eigen::Vector3f> aos(n);
+          for (std::size_t i = 0; i < n; ++i) aos[i] = Eigen::Vector3f(wx[i], wy[i], p[i].z());
+          std::fill(f.begin(), f.end(), -7.0f);
+          std::fill(v.begin(), v.end(), -7);
+          stage1_heads::WriteNetworkInput(aos.data(), rgb ? c.data() : nullptr, n, origin, scale,
+                                          qmin, f.data(), v.data(), isa);
+          for (std::size_t k = 0; k < n * C; ++k) ASSERT_EQ(f[k], wf[k]) << "aos " << k;
+          for (std::size_t k = 0; k < n * 4; ++k) ASSERT_EQ(v[k], wv[k]) << "aos " << k;
         }
       }
     }
