@@ -1020,6 +1020,167 @@ __attribute__((target("avx512f"))) void Input512(const Points& points,
   }
   InputRange(points, colors, 16 * blocks, n, origin, scale, q0, f, vx);
 }
+
+// The same in 8-lane AVX2 (no two-source permutes there): the x, y or z of 8 AoS points sit
+// at 8 distinct lanes of the three vectors, so two blends and one lane permute gather them
+// (and the inverse permute and two blends put them back).
+struct Aos8 {
+  int blend1, blend2;  // lanes taken from the second / third vector
+  int lane[8];         // point i's lane
+};
+constexpr Aos8 kAos8[3] = {{0x92, 0x24, {0, 3, 6, 1, 4, 7, 2, 5}},
+                           {0x24, 0x49, {1, 4, 7, 2, 5, 0, 3, 6}},
+                           {0x49, 0x92, {2, 5, 0, 3, 6, 1, 4, 7}}};
+// Back to AoS: the lane permute of each coordinate (P[lane] = the point stored there), and
+// per output vector b the lanes holding y / z.
+constexpr int kSoaPerm[3][8] = {
+    {0, 3, 6, 1, 4, 7, 2, 5}, {5, 0, 3, 6, 1, 4, 7, 2}, {2, 5, 0, 3, 6, 1, 4, 7}};
+constexpr int kSoaY[3] = {0x92, 0x24, 0x49}, kSoaZ[3] = {0x24, 0x49, 0x92};
+
+template <int kB1, int kB2>
+__attribute__((target("avx2"))) inline __m256 Gather8(__m256 a0, __m256 a1, __m256 a2,
+                                                      __m256i lanes) {
+  return _mm256_permutevar8x32_ps(_mm256_blend_ps(_mm256_blend_ps(a0, a1, kB1), a2, kB2), lanes);
+}
+
+__attribute__((target("avx2"))) inline void LoadAos8(const float* q, __m256 v[3]) {
+  const __m256 a0 = _mm256_loadu_ps(q), a1 = _mm256_loadu_ps(q + 8), a2 = _mm256_loadu_ps(q + 16);
+  v[0] = Gather8<kAos8[0].blend1, kAos8[0].blend2>(
+      a0, a1, a2, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kAos8[0].lane)));
+  v[1] = Gather8<kAos8[1].blend1, kAos8[1].blend2>(
+      a0, a1, a2, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kAos8[1].lane)));
+  v[2] = Gather8<kAos8[2].blend1, kAos8[2].blend2>(
+      a0, a1, a2, _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kAos8[2].lane)));
+}
+
+__attribute__((target("avx2"))) inline __m256 Join128(__m128 lo, __m128 hi) {
+  return _mm256_insertf128_ps(_mm256_castps128_ps256(lo), hi, 1);
+}
+
+__attribute__((target("avx2"))) void Move256(const Eigen::Vector3f* p, std::size_t n, double cx,
+                                             double cy, double sign, double c, double s,
+                                             MovedPoints* out) {
+  const __m256d vcx = _mm256_set1_pd(cx), vcy = _mm256_set1_pd(cy);
+  const __m256d vsign = _mm256_set1_pd(sign), vc = _mm256_set1_pd(c), vs = _mm256_set1_pd(s);
+  __m256 lo[3], hi[3];
+  for (int a = 0; a < 3; ++a) {
+    lo[a] = _mm256_set1_ps(out->lo[a]);
+    hi[a] = _mm256_set1_ps(out->hi[a]);
+  }
+  const float* src = reinterpret_cast<const float*>(p);
+  float* dst[3] = {out->x.data(), out->y.data(), out->z.data()};
+  const std::size_t blocks = n / 8;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    __m256 in[3];
+    LoadAos8(src + 24 * b, in);
+    __m128 mx[2], my[2];
+    for (int h = 0; h < 2; ++h) {
+      const __m256d xd =
+          _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(in[0]) : _mm256_extractf128_ps(in[0], 1));
+      const __m256d yd =
+          _mm256_cvtps_pd(h == 0 ? _mm256_castps256_ps128(in[1]) : _mm256_extractf128_ps(in[1], 1));
+      const __m256d dx = _mm256_mul_pd(vsign, _mm256_sub_pd(xd, vcx));
+      const __m256d dy = _mm256_sub_pd(yd, vcy);
+      mx[h] = _mm256_cvtpd_ps(
+          _mm256_sub_pd(_mm256_add_pd(vcx, _mm256_mul_pd(vc, dx)), _mm256_mul_pd(vs, dy)));
+      my[h] = _mm256_cvtpd_ps(
+          _mm256_add_pd(_mm256_add_pd(vcy, _mm256_mul_pd(vs, dx)), _mm256_mul_pd(vc, dy)));
+    }
+    const __m256 v[3] = {Join128(mx[0], mx[1]), Join128(my[0], my[1]), in[2]};
+    for (int a = 0; a < 3; ++a) {
+      _mm256_storeu_ps(dst[a] + 8 * b, v[a]);
+      lo[a] = _mm256_min_ps(lo[a], v[a]);
+      hi[a] = _mm256_max_ps(hi[a], v[a]);
+    }
+  }
+  for (int a = 0; a < 3; ++a) {
+    alignas(32) float l[8], h[8];
+    _mm256_store_ps(l, lo[a]);
+    _mm256_store_ps(h, hi[a]);
+    for (int k = 0; k < 8; ++k) {
+      out->lo[a] = std::min(out->lo[a], l[k]);
+      out->hi[a] = std::max(out->hi[a], h[k]);
+    }
+  }
+  MoveRange(p, 8 * blocks, n, cx, cy, sign, c, s, out);
+}
+
+template <class Points>
+__attribute__((target("avx2"))) void Input256(const Points& points, const Eigen::Vector3f* colors,
+                                              std::size_t n, const float origin[3], float scale,
+                                              const double q0[3], float* f, std::int32_t* vx) {
+  constexpr bool kAos = std::is_same_v<Points, AosPoints>;
+  const __m256 o[3] = {_mm256_set1_ps(origin[0]), _mm256_set1_ps(origin[1]),
+                       _mm256_set1_ps(origin[2])};
+  const __m256d vq0[3] = {_mm256_set1_pd(q0[0]), _mm256_set1_pd(q0[1]), _mm256_set1_pd(q0[2])};
+  const __m256 vscale = _mm256_set1_ps(scale), half = _mm256_set1_ps(0.5f);
+  __m256i perm[3];
+  for (int a = 0; a < 3; ++a) {
+    perm[a] = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kSoaPerm[a]));
+  }
+  const float* col = reinterpret_cast<const float*>(colors);
+  const int C = colors ? 6 : 3;
+  const std::size_t blocks = n / 8;
+  for (std::size_t b = 0; b < blocks; ++b) {
+    __m256 in[3];
+    if constexpr (kAos) {
+      LoadAos8(points.p + 24 * b, in);
+    } else {
+      in[0] = _mm256_loadu_ps(points.x + 8 * b);
+      in[1] = _mm256_loadu_ps(points.y + 8 * b);
+      in[2] = _mm256_loadu_ps(points.z + 8 * b);
+    }
+    __m256 pos[3];
+    __m256i iv[3];
+    for (int a = 0; a < 3; ++a) {
+      pos[a] = _mm256_sub_ps(in[a], o[a]);
+      const __m256 q = _mm256_mul_ps(pos[a], vscale);
+      const __m128i lo =
+          _mm256_cvttpd_epi32(_mm256_sub_pd(_mm256_cvtps_pd(_mm256_castps256_ps128(q)), vq0[a]));
+      const __m128i hi =
+          _mm256_cvttpd_epi32(_mm256_sub_pd(_mm256_cvtps_pd(_mm256_extractf128_ps(q, 1)), vq0[a]));
+      iv[a] = _mm256_inserti128_si256(_mm256_castsi128_si256(lo), hi, 1);
+    }
+    // Voxel rows (0, x, y, z): points (0, 1, 4, 5) and (2, 3, 6, 7) by 32- and 64-bit unpacks.
+    const __m256i zero = _mm256_setzero_si256();
+    const __m256i zx_lo = _mm256_unpacklo_epi32(zero, iv[0]),
+                  yz_lo = _mm256_unpacklo_epi32(iv[1], iv[2]);
+    const __m256i zx_hi = _mm256_unpackhi_epi32(zero, iv[0]),
+                  yz_hi = _mm256_unpackhi_epi32(iv[1], iv[2]);
+    const __m256i r0 = _mm256_unpacklo_epi64(zx_lo, yz_lo),
+                  r1 = _mm256_unpackhi_epi64(zx_lo, yz_lo);
+    const __m256i r2 = _mm256_unpacklo_epi64(zx_hi, yz_hi),
+                  r3 = _mm256_unpackhi_epi64(zx_hi, yz_hi);
+    __m256i* vo = reinterpret_cast<__m256i*>(vx + 32 * b);
+    _mm256_storeu_si256(vo + 0, _mm256_permute2x128_si256(r0, r1, 0x20));  // points 0, 1
+    _mm256_storeu_si256(vo + 1, _mm256_permute2x128_si256(r2, r3, 0x20));  // 2, 3
+    _mm256_storeu_si256(vo + 2, _mm256_permute2x128_si256(r0, r1, 0x31));  // 4, 5
+    _mm256_storeu_si256(vo + 3, _mm256_permute2x128_si256(r2, r3, 0x31));  // 6, 7
+    // Positions back to AoS.
+    const __m256 px = _mm256_permutevar8x32_ps(pos[0], perm[0]);
+    const __m256 py = _mm256_permutevar8x32_ps(pos[1], perm[1]);
+    const __m256 pz = _mm256_permutevar8x32_ps(pos[2], perm[2]);
+    const __m256 aos[3] = {_mm256_blend_ps(_mm256_blend_ps(px, py, kSoaY[0]), pz, kSoaZ[0]),
+                           _mm256_blend_ps(_mm256_blend_ps(px, py, kSoaY[1]), pz, kSoaZ[1]),
+                           _mm256_blend_ps(_mm256_blend_ps(px, py, kSoaY[2]), pz, kSoaZ[2])};
+    float* fo = f + static_cast<std::size_t>(C) * 8 * b;
+    if (!colors) {
+      for (int k = 0; k < 3; ++k) _mm256_storeu_ps(fo + 8 * k, aos[k]);
+      continue;
+    }
+    // With colours: 6-float rows (position | colour - 0.5) through a small buffer.
+    alignas(32) float pa[24], ca[24];
+    for (int k = 0; k < 3; ++k) {
+      _mm256_store_ps(pa + 8 * k, aos[k]);
+      _mm256_store_ps(ca + 8 * k, _mm256_sub_ps(_mm256_loadu_ps(col + 24 * b + 8 * k), half));
+    }
+    for (int i = 0; i < 8; ++i) {
+      std::memcpy(fo + 6 * i, pa + 3 * i, 3 * sizeof(float));
+      std::memcpy(fo + 6 * i + 3, ca + 3 * i, 3 * sizeof(float));
+    }
+  }
+  InputRange(points, colors, 8 * blocks, n, origin, scale, q0, f, vx);
+}
 #endif
 
 }  // namespace
@@ -1035,9 +1196,15 @@ void MoveScenePoints(const Eigen::Vector3f* points, std::size_t n, double cx, do
     out->hi[a] = -INFINITY;
   }
 #if defined(__x86_64__)
-  if (Resolve(isa) == HeadsIsa::kAvx512) {
-    Move512(points, n, cx, cy, sign, cos_theta, sin_theta, out);
-    return;
+  switch (Resolve(isa)) {
+    case HeadsIsa::kAvx512:
+      Move512(points, n, cx, cy, sign, cos_theta, sin_theta, out);
+      return;
+    case HeadsIsa::kAvx2:
+      Move256(points, n, cx, cy, sign, cos_theta, sin_theta, out);
+      return;
+    default:
+      break;
   }
 #else
   (void)Resolve(isa);
@@ -1053,9 +1220,15 @@ void WriteInput(const Points& points, const Eigen::Vector3f* colors, std::size_t
                 std::int32_t* voxel, HeadsIsa isa) {
   const double q0[3] = {qmin[0], qmin[1], qmin[2]};
 #if defined(__x86_64__)
-  if (Resolve(isa) == HeadsIsa::kAvx512) {
-    Input512(points, colors, n, origin, scale, q0, features, voxel);
-    return;
+  switch (Resolve(isa)) {
+    case HeadsIsa::kAvx512:
+      Input512(points, colors, n, origin, scale, q0, features, voxel);
+      return;
+    case HeadsIsa::kAvx2:
+      Input256(points, colors, n, origin, scale, q0, features, voxel);
+      return;
+    default:
+      break;
   }
 #else
   (void)Resolve(isa);
