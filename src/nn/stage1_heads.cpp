@@ -815,6 +815,14 @@ void InputRange(const Points& src, const Eigen::Vector3f* colors, std::size_t be
   }
 }
 
+// Folds the per-lane minima l and maxima h (`lanes` each) of coordinate a into out's box.
+inline void FoldBox(const float* l, const float* h, int lanes, int a, MovedPoints* out) {
+  for (int k = 0; k < lanes; ++k) {
+    out->lo[a] = std::min(out->lo[a], l[k]);
+    out->hi[a] = std::max(out->hi[a], h[k]);
+  }
+}
+
 #if defined(__x86_64__)
 // Lane l of a permutation over `sources` 16-lane vectors: index and whether it reads the
 // second pair (flat >= 32). The AoS <-> SoA moves below are two permutes per vector.
@@ -896,10 +904,7 @@ __attribute__((target("avx512f"))) void Move512(const Eigen::Vector3f* p, std::s
     alignas(64) float l[16], h[16];
     _mm512_store_ps(l, lo[a]);
     _mm512_store_ps(h, hi[a]);
-    for (int k = 0; k < 16; ++k) {
-      out->lo[a] = std::min(out->lo[a], l[k]);
-      out->hi[a] = std::max(out->hi[a], h[k]);
-    }
+    FoldBox(l, h, 16, a, out);
   }
   MoveRange(p, 16 * blocks, n, cx, cy, sign, c, s, out);
 }
@@ -1097,10 +1102,7 @@ __attribute__((target("avx2"))) void Move256(const Eigen::Vector3f* p, std::size
     alignas(32) float l[8], h[8];
     _mm256_store_ps(l, lo[a]);
     _mm256_store_ps(h, hi[a]);
-    for (int k = 0; k < 8; ++k) {
-      out->lo[a] = std::min(out->lo[a], l[k]);
-      out->hi[a] = std::max(out->hi[a], h[k]);
-    }
+    FoldBox(l, h, 8, a, out);
   }
   MoveRange(p, 8 * blocks, n, cx, cy, sign, c, s, out);
 }
