@@ -331,14 +331,11 @@ std::vector<float> SemanticClassWeights(const std::vector<Stage1Sample>& samples
 
 std::string SparseKernelsInUse() { return SparseKernelPathName(ResolveSparseKernelPath()); }
 
-namespace {
-// The heads' kernels (softmax, TTA mean) follow the sparse-kernel path in force
-// (DIMR_SPARSE_KERNELS or SetSparseKernelPath), so that forcing avx2 on an AVX-512 machine times an
-// AVX2 machine's whole pass; the GEMM fallback takes the 4-lane kernel. All give the same bits.
-stage1_heads::HeadsIsa HeadsIsaInUse() { return stage1_heads::HeadsIsaOfSparsePath(); }
-}  // namespace
-
-std::string Stage1HeadsKernelsInUse() { return stage1_heads::HeadsIsaName(HeadsIsaInUse()); }
+// The heads' kernels (network input, softmax, TTA mean) follow the sparse-kernel path in force
+// (DIMR_SPARSE_KERNELS or SetSparseKernelPath): stage1_heads::HeadsIsaOfSparsePath.
+std::string Stage1HeadsKernelsInUse() {
+  return stage1_heads::HeadsIsaName(stage1_heads::HeadsIsaOfSparsePath());
+}
 
 void SetIntraOpThreads(int threads) {
   if (threads < 1) throw InvalidArgument("threads must be >= 1, got " + std::to_string(threads));
@@ -433,13 +430,11 @@ struct Stage1Model::Impl {
                          stage1_heads::MovedPoints* moved, Stage1Timing* timing) {
     const std::size_t n = scene.size;
     stage1_heads::MoveScenePoints(scene.points, n, centre.x(), centre.y(), sign, std::cos(theta),
-                                  std::sin(theta), moved, HeadsIsaInUse());
+                                  std::sin(theta), moved, stage1_heads::HeadsIsaOfSparsePath());
     const Eigen::Vector3f lo(moved->lo[0], moved->lo[1], moved->lo[2]);
     const Eigen::Vector3f hi(moved->hi[0], moved->hi[1], moved->hi[2]);
+    // (A colour model's scene has colours: the plain pass, which always runs first, checked.)
     const std::string who = "stage1 input: scene '" + scene.name + "'";
-    if (config.input.use_rgb && scene.colors == nullptr) {
-      throw InvalidArgument(who + ": the model reads colours and the scene has none");
-    }
     if (!lo.allFinite() || !hi.allFinite()) {
       throw InvalidArgument(who + ": a rotated point is not finite");
     }
@@ -464,9 +459,10 @@ struct Stage1Model::Impl {
     }
     torch::Tensor voxel = torch::empty({static_cast<int64_t>(n), 4}, torch::kInt32);
     torch::Tensor features = torch::empty({static_cast<int64_t>(n), C}, torch::kFloat32);
-    stage1_heads::WriteMovedNetworkInput(
-        *moved, input.use_rgb ? scene.colors : nullptr, n, origin.data(), scale, qmin.data(),
-        features.data_ptr<float>(), voxel.data_ptr<std::int32_t>(), HeadsIsaInUse());
+    stage1_heads::WriteMovedNetworkInput(*moved, input.use_rgb ? scene.colors : nullptr, n,
+                                         origin.data(), scale, qmin.data(),
+                                         features.data_ptr<float>(), voxel.data_ptr<std::int32_t>(),
+                                         stage1_heads::HeadsIsaOfSparsePath());
     return Run(voxel, features.to(device), 1, &heads, timing);
   }
 
@@ -623,7 +619,8 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     // The semantic and heading-bin softmax in place (one sweep over the rows, no slice copies;
     // ATen's softmax on 25- and 12-wide rows cost ~5 ms per pass).
     std::vector<int> argmax(static_cast<std::size_t>(plain.h.semantic.size(0)));
-    stage1_heads::SoftmaxInPlace(Impl::HeadsView(plain), argmax.data(), HeadsIsaInUse());
+    stage1_heads::SoftmaxInPlace(Impl::HeadsView(plain), argmax.data(),
+                                 stage1_heads::HeadsIsaOfSparsePath());
     stage1_heads::CopyOutOnePass(Impl::HeadsView(plain), argmax.data(),
                                  plain.point_to_voxel.data_ptr<int64_t>(), n, &out);
   } else {
@@ -636,7 +633,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
       const stage1_heads::VoxelHeads h = Impl::HeadsView(pass);
       rows.emplace_back(new float[static_cast<std::size_t>(h.voxels) * layout.stride]);
       stage1_heads::SoftmaxToInputFrameRows(h, layout, mirrored, k, of_rotations, rows.back().get(),
-                                            HeadsIsaInUse());
+                                            stage1_heads::HeadsIsaOfSparsePath());
     };
     add_rows(plain, false, 0, 1);
     voxel_of.emplace_back();  // the plain pass: its voxel order itself
@@ -667,7 +664,7 @@ Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotatio
     }
     stage1_heads::AverageInVoxelOrder(plain.voxel_offsets.data_ptr<int64_t>(),
                                       plain.voxel_offsets.size(0) - 1, order, n, row_tables,
-                                      indexes, layout, &out, HeadsIsaInUse());
+                                      indexes, layout, &out, stage1_heads::HeadsIsaOfSparsePath());
   }
   // heads = everything but the voxelisation, rulebooks and convolutions: network input, head
   // MLPs, softmax, mapping back, averaging and copy-out.
