@@ -16,7 +16,6 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <numeric>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -34,7 +33,9 @@
 #include "dimr/pipeline/bsp_mesher.h"
 #include "dimr/pipeline/class_bias.h"
 #include "dimr/pipeline/clustering.h"
+#include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/stage1_instances.h"
+#include "dimr/pipeline/stage1_segmenter.h"
 #include "dimr/pipeline/stage2_proposals.h"
 #include "tools/bsp_options.h"
 #include "tools/command_registry.h"
@@ -53,41 +54,13 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 
 // ---------------------------------------------------------------- stage-1 settings
 // The subset of a stage-1 card's recommended_inference that proposals depend on.
+// The stage-1 inference settings of `dimr stage2 prepare`: the card's (or --stage1-inference's)
+// recommended_inference, read by the library parser (pipeline::Stage1InferenceConfig), so every
+// key the segmenter knows (colour_norm, cluster_cap, ...) means the same here.
 struct Stage1Settings {
-  std::vector<pipeline::ClusterPass> passes{
-      {false, 0.03}, {true, 0.01}, {true, 0.03}, {true, 0.05}};
-  int rotations = 1;
-  bool mirror = false;
-  double vote_radius = 0;
-  int vote_min_points = 20;
-  std::vector<float> class_bias;
-  std::vector<int> vote_exclude;
+  pipeline::Stage1InferenceConfig config;
   std::string text;  // as read
 };
-
-std::vector<std::string> Split(const std::string& text, char sep) {
-  std::vector<std::string> out;
-  std::stringstream in(text);
-  std::string item;
-  while (std::getline(in, item, sep)) {
-    if (!item.empty()) out.push_back(item);
-  }
-  return out;
-}
-
-double ParseNumber(const std::string& v, const std::string& where) {
-  std::size_t used = 0;
-  double d = 0;
-  try {
-    d = std::stod(v, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != v.size() || !std::isfinite(d)) {
-    throw ParseError(where, "'" + v + "' is not a finite number");
-  }
-  return d;
-}
 
 Stage1Settings ReadStage1Settings(const std::string& model, const std::string& override_text) {
   Stage1Settings s;
@@ -97,51 +70,11 @@ Stage1Settings ReadStage1Settings(const std::string& model, const std::string& o
   }
   s.text = text;
   const std::string where = override_text.empty() ? ModelCardPath(model) : "--stage1-inference";
-  std::istringstream in(text);
-  std::string item;
-  while (in >> item) {
-    const std::size_t eq = item.find('=');
-    const std::string key = item.substr(0, eq);
-    const std::string value = eq == std::string::npos ? "" : item.substr(eq + 1);
-    if (key == "passes") {
-      s.passes.clear();
-      for (const std::string& p : Split(value, ',')) {
-        if (p.size() < 2 || (p[0] != 'o' && p[0] != 's')) {
-          throw ParseError(where, "bad clustering pass '" + p + "'");
-        }
-        s.passes.push_back({p[0] == 's', ParseNumber(p.substr(1), where)});
-      }
-    } else if (key == "rotations") {
-      s.rotations = static_cast<int>(ParseNumber(value, where));
-    } else if (key == "mirror") {
-      s.mirror = value == "1";
-    } else if (key == "vote_radius") {
-      s.vote_radius = ParseNumber(value, where);
-    } else if (key == "vote_min_points") {
-      s.vote_min_points = static_cast<int>(ParseNumber(value, where));
-    } else if (key == "class_bias") {
-      s.class_bias.clear();
-      if (value != "none") {
-        for (const std::string& b : Split(value, ',')) {
-          s.class_bias.push_back(static_cast<float>(ParseNumber(b, where)));
-        }
-      }
-      if (!s.class_bias.empty() && s.class_bias.size() != nn::kStage1Classes) {
-        throw ParseError(where, "class_bias needs 25 values");
-      }
-    } else if (key == "vote_exclude") {
-      s.vote_exclude.clear();
-      const auto& names = data::RfsClassNames();
-      for (const std::string& n : Split(value, ',')) {
-        if (n == "none") continue;
-        const auto it =
-            std::find_if(names.begin(), names.end(), [&](const char* c) { return n == c; });
-        if (it == names.end()) throw ParseError(where, "unknown RFS class '" + n + "'");
-        s.vote_exclude.push_back(static_cast<int>(it - names.begin()));
-      }
-    } else {
-      throw ParseError(where, "unknown recommended_inference key '" + key + "'");
-    }
+  try {
+    s.config = pipeline::Stage1InferenceConfig::FromString(text);
+    s.config.Validate();
+  } catch (const std::exception& e) {
+    throw ParseError(where, e.what());
   }
   return s;
 }
@@ -163,28 +96,38 @@ struct Stage1Proposals {
 Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& s,
                           const Stage1Settings& st, int min_points) {
   static const std::vector<int> rfs_to_cad = RfsToCadTable();
+  const pipeline::Stage1InferenceConfig& c = st.config;
   Stage1Proposals r;
-  r.out = model.PredictAugmented(s, st.rotations, st.mirror, true);
-  const int nc = static_cast<int>(rfs_to_cad.size());
-  if (!st.class_bias.empty()) {
-    r.out.semantic = r.out.PerPoint(
-        pipeline::ApplyClassBias(st.class_bias, &r.out.semantic_prob, nc), s.points.size());
+  if (c.colour_norm && !s.colors.empty()) {
+    // The colour standardisation the segmenter applies at inference (colour_norm.h).
+    nn::Stage1Sample standardised = s;
+    standardised.colors = pipeline::StandardiseColours(s.colors, c.colour_range);
+    r.out = model.PredictAugmented(standardised, c.rotations, c.mirror, true);
+  } else {
+    r.out = model.PredictAugmented(s, c.rotations, c.mirror, true);
   }
-  if (st.vote_radius > 0) {
+  const int nc = static_cast<int>(rfs_to_cad.size());
+  if (!c.class_bias.empty()) {
+    r.out.semantic = r.out.PerPoint(
+        pipeline::ApplyClassBias(c.class_bias, &r.out.semantic_prob, nc), s.points.size());
+  }
+  if (c.vote_radius > 0) {
     std::vector<bool> is_thing(nc, true);
     is_thing[data::kWall] = is_thing[data::kFloor] = false;
     pipeline::SemanticVoteConfig vc;
-    vc.radius = st.vote_radius;
-    vc.min_points = st.vote_min_points;
-    vc.excluded_classes = st.vote_exclude;
+    vc.radius = c.vote_radius;
+    vc.min_points = c.vote_min_points;
+    vc.excluded_classes = c.vote_exclude;
+    vc.neighbour_cap = c.cluster_cap;
     r.out.semantic = pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic,
                                              r.out.semantic_prob, is_thing, vc, r.out.point_row);
   }
   std::vector<int> cad(r.out.semantic.size());
   for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[r.out.semantic[i]];
   pipeline::ClusteringConfig cc;
-  cc.passes = st.passes;
+  cc.passes = c.passes;
   cc.min_points = std::max(1, min_points);
+  cc.neighbour_cap = c.cluster_cap;
   r.proposals = pipeline::MultiScaleClusters(s.points, r.out.offsets, cad, cc);
   for (const auto& p : r.proposals) {
     r.headings.push_back(pipeline::ProposalHeading(p.points, r.out.heading_prob,

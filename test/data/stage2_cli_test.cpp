@@ -82,6 +82,44 @@ TEST(Stage2Cli, CheckGtPrepareTrainEval) {
   EXPECT_NE(out.find("bad.pt"), std::string::npos) << out;
   fs::remove_all(dir);
 }
+
+// `stage2 prepare` reads the stage-1 card's recommended_inference with the segmenter's own
+// parser: every key of the shipped card (colour_norm, cluster_cap, ...) is accepted, and the
+// proposals are those of the card's test-time augmentation; an unknown key names itself.
+TEST(Stage2Cli, PrepareUsesTheShippedStage1CardAsIs) {
+  if (RunCli("train stage2 --help").first != 0) GTEST_SKIP() << "dimr built without stage 2";
+  const std::string models = std::string(DIMR_SOURCE_DIR) + "/models";
+  const fs::path dir = FreshTempDir("stage2_cli_card");
+  const std::string d = dir.string();
+  auto [rc, out] = RunCli(
+      "synth --scenes 1 --seed 6 --split val --frames-per-scene 16 --quiet --out " + d + "/synth");
+  ASSERT_EQ(rc, 0) << out;
+  const std::string card = ReadFileText(models + "/stage1/model.yaml");
+  ASSERT_NE(card.find("colour_norm="), std::string::npos);  // the keys this test is about
+  ASSERT_NE(card.find("cluster_cap=0"), std::string::npos);
+  std::tie(rc, out) =
+      RunCli("stage2 prepare --scans " + d + "/synth --stage1 " + models +
+             "/stage1/stage1.pt --bsp " + models + "/bsp/bsp.pt --out " + d + "/cache.bin --quiet");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("rotations=6 mirror=1"), std::string::npos) << out;
+  std::smatch m;
+  ASSERT_TRUE(std::regex_search(out, m,
+                                std::regex("1 scenes -> ([0-9]+) proposals \\(([0-9]+) "
+                                           "with IoU > 0.5")))
+      << out;
+  // The card's settings give few, good proposals (docs/stage2.md: almost all IoU > 0.5).
+  ASSERT_GT(std::stoi(m[1]), 2);
+  EXPECT_GE(std::stoi(m[2]), std::stoi(m[1]) * 7 / 10) << out;
+
+  std::tie(rc, out) = RunCli("stage2 prepare --scans " + d + "/synth --stage1 " + models +
+                             "/stage1/stage1.pt --bsp " + models + "/bsp/bsp.pt --out " + d +
+                             "/bad.bin --quiet --stage1-inference 'rotations=1 spin=3'");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("--stage1-inference"), std::string::npos) << out;
+  EXPECT_NE(out.find("spin=3"), std::string::npos) << out;
+  EXPECT_FALSE(fs::exists(d + "/bad.bin"));
+  fs::remove_all(dir);
+}
 #endif
 
 }  // namespace
