@@ -64,10 +64,12 @@ TEST(ModelCard, ReadsTheShippedStage1Card) {
   EXPECT_EQ(inf.rfind("passes=s0.12,s0.2,s0.3 rotations=6", 0), 0u) << inf;
   // "... vote_exclude=window,picture,display cluster_cap=0": the quote ends before the comment.
   EXPECT_EQ(inf.substr(inf.size() - 14), " cluster_cap=0") << inf;
-  EXPECT_EQ(card.GetInt("training.steps"), 20423);
-  EXPECT_DOUBLE_EQ(card.GetDouble("metrics_test.instance_ap50_cad"), 0.873);
-  EXPECT_DOUBLE_EQ(card.GetDouble("metrics_test.val_60_rooms.cv_heldout_miou"), 0.8020);
-  EXPECT_EQ(card.GetString("training.val_data"), "");
+  EXPECT_EQ(card.GetInt("training.steps"), 9719);
+  EXPECT_DOUBLE_EQ(card.GetDouble("metrics_test.instance_ap50_cad"), 0.865);
+  EXPECT_DOUBLE_EQ(card.GetDouble("metrics_test.val_60_rooms.cv_heldout_miou"), 0.7696);
+  EXPECT_EQ(card.GetString("training.val_data"), "data/stage1_v2_val.bin");
+  EXPECT_EQ(card.GetInt("previous_step9.training.steps"), 20423);
+  EXPECT_DOUBLE_EQ(card.GetDouble("metrics_test.v2_test.instance_ap50_cad"), 0.581);
 }
 
 TEST(ModelCard, DefaultsOnlyForMissingKeys) {
