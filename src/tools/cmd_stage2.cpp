@@ -53,7 +53,6 @@ double Seconds(Clock::time_point a, Clock::time_point b) {
 }
 
 // ---------------------------------------------------------------- stage-1 settings
-// The subset of a stage-1 card's recommended_inference that proposals depend on.
 // The stage-1 inference settings of `dimr stage2 prepare`: the card's (or --stage1-inference's)
 // recommended_inference, read by the library parser (pipeline::Stage1InferenceConfig), so every
 // key the segmenter knows (colour_norm, cluster_cap, ...) means the same here.
@@ -97,6 +96,8 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
                           const Stage1Settings& st, int min_points) {
   static const std::vector<int> rfs_to_cad = RfsToCadTable();
   const pipeline::Stage1InferenceConfig& c = st.config;
+  // The vote and clustering settings exactly as the segmenter derives them from the card.
+  const pipeline::Stage1InstanceConfig instance_config = c.InstanceConfig();
   Stage1Proposals r;
   if (c.colour_norm && !s.colors.empty()) {
     // The colour standardisation the segmenter applies at inference (colour_norm.h).
@@ -114,20 +115,15 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
   if (c.vote_radius > 0) {
     std::vector<bool> is_thing(nc, true);
     is_thing[data::kWall] = is_thing[data::kFloor] = false;
-    pipeline::SemanticVoteConfig vc;
-    vc.radius = c.vote_radius;
-    vc.min_points = c.vote_min_points;
-    vc.excluded_classes = c.vote_exclude;
-    vc.neighbour_cap = c.cluster_cap;
-    r.out.semantic = pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic,
-                                             r.out.semantic_prob, is_thing, vc, r.out.point_row);
+    r.out.semantic =
+        pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic, r.out.semantic_prob,
+                                is_thing, instance_config.semantic_vote, r.out.point_row);
   }
   std::vector<int> cad(r.out.semantic.size());
   for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[r.out.semantic[i]];
-  pipeline::ClusteringConfig cc;
-  cc.passes = c.passes;
+  // Every pass's clusters (no NMS), down to prepare's own --min-points.
+  pipeline::ClusteringConfig cc = instance_config.clustering;
   cc.min_points = std::max(1, min_points);
-  cc.neighbour_cap = c.cluster_cap;
   r.proposals = pipeline::MultiScaleClusters(s.points, r.out.offsets, cad, cc);
   for (const auto& p : r.proposals) {
     r.headings.push_back(pipeline::ProposalHeading(p.points, r.out.heading_prob,
