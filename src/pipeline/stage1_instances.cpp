@@ -47,13 +47,17 @@ void Stage1InstanceConfig::Validate() const {
   }
 }
 
-std::vector<ScoredInstance> ExtractStage1Instances(
-    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
-    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
-    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
-    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config,
-    const std::vector<std::int64_t>& point_row) {
-  config.Validate();
+namespace {
+
+// The input checks shared by ExtractStage1Instances and ScoredStage1Proposals (messages name
+// the first).
+void CheckStage1Inputs(const std::vector<Eigen::Vector3f>& points,
+                       const std::vector<Eigen::Vector3f>& offsets,
+                       const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+                       const std::vector<float>& heading_prob,
+                       const std::vector<float>& heading_residual,
+                       const std::vector<int>& rfs_to_cad,
+                       const std::vector<std::int64_t>& point_row) {
   const std::size_t n = points.size();
   const std::size_t num_sem = rfs_to_cad.size();
   if (num_sem == 0) throw InvalidArgument("ExtractStage1Instances: rfs_to_cad is empty");
@@ -69,29 +73,54 @@ std::vector<ScoredInstance> ExtractStage1Instances(
                             "] = " + std::to_string(cad_label[i]) + " is not in [-1, 7]");
     }
   }
+}
 
-  std::vector<Proposal> proposals =
-      MultiScaleClusters(points, offsets, cad_label, config.clustering);
-  // Size filter before NMS, as the reference (section 3.6, steps 2 and 3).
-  // The semantic classes of each CAD class, ascending (the order of the sums).
+// The score of proposal p: the mean over its points of the summed probability of the semantic
+// classes of its CAD class (classes_of[label], ascending: the order of the sums).
+double ProposalScore(const Proposal& p, const std::vector<std::vector<std::size_t>>& classes_of,
+                     const std::vector<float>& semantic_prob, std::size_t num_sem,
+                     const std::vector<std::int64_t>& point_row) {
+  double sum = 0.0;
+  const std::vector<std::size_t>& classes = classes_of[p.label];
+  for (int i : p.points) {
+    const float* row = semantic_prob.data() + RowOf(point_row, i) * num_sem;
+    for (std::size_t c : classes) sum += row[c];
+  }
+  const double score = sum / static_cast<double>(p.points.size());
+  if (!std::isfinite(score)) {
+    throw InvalidArgument("ExtractStage1Instances: semantic_prob has non-finite values");
+  }
+  return score;
+}
+
+std::vector<std::vector<std::size_t>> ClassesOfCad(const std::vector<int>& rfs_to_cad) {
   std::vector<std::vector<std::size_t>> classes_of(kNumCadClasses);
-  for (std::size_t c = 0; c < num_sem; ++c) {
+  for (std::size_t c = 0; c < rfs_to_cad.size(); ++c) {
     if (rfs_to_cad[c] >= 0 && rfs_to_cad[c] < kNumCadClasses)
       classes_of[rfs_to_cad[c]].push_back(c);
   }
+  return classes_of;
+}
+
+}  // namespace
+
+std::vector<ScoredInstance> ExtractStage1Instances(
+    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
+    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
+    const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config,
+    const std::vector<std::int64_t>& point_row) {
+  config.Validate();
+  CheckStage1Inputs(points, offsets, cad_label, semantic_prob, heading_prob, heading_residual,
+                    rfs_to_cad, point_row);
+  std::vector<Proposal> proposals =
+      MultiScaleClusters(points, offsets, cad_label, config.clustering);
+  // Size filter before NMS, as the reference (section 3.6, steps 2 and 3).
+  const std::vector<std::vector<std::size_t>> classes_of = ClassesOfCad(rfs_to_cad);
   std::vector<Proposal> large;
   for (auto& p : proposals) {
     if (static_cast<int>(p.points.size()) <= config.min_points) continue;
-    double sum = 0.0;
-    const std::vector<std::size_t>& classes = classes_of[p.label];
-    for (int i : p.points) {
-      const float* row = semantic_prob.data() + RowOf(point_row, i) * num_sem;
-      for (std::size_t c : classes) sum += row[c];
-    }
-    p.score = sum / static_cast<double>(p.points.size());
-    if (!std::isfinite(p.score)) {
-      throw InvalidArgument("ExtractStage1Instances: semantic_prob has non-finite values");
-    }
+    p.score = ProposalScore(p, classes_of, semantic_prob, rfs_to_cad.size(), point_row);
     large.push_back(std::move(p));
   }
   const std::vector<int> kept = PointIouNms(large, config.nms_iou);
@@ -106,6 +135,30 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     instances.push_back(std::move(inst));
   }
   return instances;
+}
+
+std::vector<ScoredInstance> ScoredStage1Proposals(
+    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
+    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
+    const std::vector<int>& rfs_to_cad, const ClusteringConfig& clustering,
+    const std::vector<std::int64_t>& point_row) {
+  clustering.Validate();
+  CheckStage1Inputs(points, offsets, cad_label, semantic_prob, heading_prob, heading_residual,
+                    rfs_to_cad, point_row);
+  std::vector<Proposal> proposals = MultiScaleClusters(points, offsets, cad_label, clustering);
+  const std::vector<std::vector<std::size_t>> classes_of = ClassesOfCad(rfs_to_cad);
+  std::vector<ScoredInstance> out;
+  out.reserve(proposals.size());
+  for (auto& p : proposals) {
+    ScoredInstance inst;
+    inst.cad_class = p.label;
+    inst.score = ProposalScore(p, classes_of, semantic_prob, rfs_to_cad.size(), point_row);
+    inst.heading = ProposalHeading(p.points, heading_prob, heading_residual, point_row);
+    inst.points = std::move(p.points);
+    out.push_back(std::move(inst));
+  }
+  return out;
 }
 
 void SemanticVoteConfig::Validate() const {

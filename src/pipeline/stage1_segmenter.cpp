@@ -414,8 +414,8 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
   return r;
 }
 
-void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
-                             const Stage1InferenceConfig& config, Stage1Result* r) {
+void Stage1Segmenter::FinishLabels(const std::vector<Eigen::Vector3f>& points,
+                                   const Stage1InferenceConfig& config, Stage1Result* r) {
   config.Validate();
   r->CheckShape("Stage1Segmenter::Finish", points.size(), kStage1RfsClasses);
   const std::vector<int>& rfs_to_cad = Stage1RfsToCad();
@@ -424,7 +424,6 @@ void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
     t[labels::kWall] = t[labels::kFloor] = false;
     return t;
   }();
-  const Stage1InstanceConfig cfg = config.InstanceConfig();
   {
     ScopedTimer t(&r->timings, "class_bias");
     if (!config.class_bias.empty()) {
@@ -437,15 +436,20 @@ void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
     ScopedTimer t(&r->timings, "vote");
     if (config.vote_radius > 0) {
       r->semantic = VoteSemantics(points, r->offsets, r->semantic, r->semantic_prob, is_thing,
-                                  cfg.semantic_vote, r->point_row);
+                                  config.InstanceConfig().semantic_vote, r->point_row);
     }
   }
-  ScopedTimer t(&r->timings, "clustering");
   r->cad_label.resize(r->semantic.size());
   for (std::size_t i = 0; i < r->semantic.size(); ++i) r->cad_label[i] = rfs_to_cad[r->semantic[i]];
-  r->instances =
-      ExtractStage1Instances(points, r->offsets, r->cad_label, r->semantic_prob, r->heading_prob,
-                             r->heading_residual, rfs_to_cad, cfg, r->point_row);
+}
+
+void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
+                             const Stage1InferenceConfig& config, Stage1Result* r) {
+  FinishLabels(points, config, r);
+  ScopedTimer t(&r->timings, "clustering");
+  r->instances = ExtractStage1Instances(points, r->offsets, r->cad_label, r->semantic_prob,
+                                        r->heading_prob, r->heading_residual, Stage1RfsToCad(),
+                                        config.InstanceConfig(), r->point_row);
 }
 
 Stage1Result Stage1Segmenter::Segment(const PointCloudInput& input, bool with_features) const {

@@ -31,9 +31,7 @@
 #include "dimr/nn/stage1_model.h"
 #include "dimr/nn/stage2_model.h"
 #include "dimr/pipeline/bsp_mesher.h"
-#include "dimr/pipeline/class_bias.h"
 #include "dimr/pipeline/clustering.h"
-#include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/stage1_instances.h"
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "dimr/pipeline/stage2_proposals.h"
@@ -78,65 +76,31 @@ Stage1Settings ReadStage1Settings(const std::string& model, const std::string& o
   return s;
 }
 
-std::vector<int> RfsToCadTable() {
-  std::vector<int> t(data::kNumRfsClasses);
-  for (int r = 0; r < data::kNumRfsClasses; ++r) t[r] = data::RfsToCad(r);
-  return t;
-}
-
-// Stage 1 on one room and the proposals of every clustering pass (no NMS), each with its
-// heading vote and its stage-1 score.
+// Stage 1 on one room as the segmenter runs it (pipeline::Stage1Segmenter: colour
+// standardisation, test-time augmentation, class bias, vote), with the point features, and the
+// proposals of every clustering pass (no size filter, no NMS) down to prepare's own
+// --min-points, each with its heading vote and its stage-1 score.
 struct Stage1Proposals {
-  nn::Stage1Output out;
-  std::vector<pipeline::Proposal> proposals;
-  std::vector<double> headings, scores;
+  pipeline::Stage1Result result;  // features, offsets, labels; network_origin.z() = floor
+  std::vector<pipeline::ScoredInstance> proposals;
 };
 
 Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& s,
-                          const Stage1Settings& st, int min_points) {
-  static const std::vector<int> rfs_to_cad = RfsToCadTable();
-  const pipeline::Stage1InferenceConfig& c = st.config;
-  // The vote and clustering settings exactly as the segmenter derives them from the card.
-  const pipeline::Stage1InstanceConfig instance_config = c.InstanceConfig();
+                          const Stage1Settings& st, int min_points, const std::string& name) {
+  const pipeline::Stage1Segmenter seg = pipeline::Stage1Segmenter::Borrow(model, st.config);
+  pipeline::PointCloudInput input;
+  input.name = name;
+  input.points = s.points;
+  if (seg.uses_color()) input.colors = s.colors;
   Stage1Proposals r;
-  if (c.colour_norm && !s.colors.empty()) {
-    // The colour standardisation the segmenter applies at inference (colour_norm.h).
-    nn::Stage1Sample standardised = s;
-    standardised.colors = pipeline::StandardiseColours(s.colors, c.colour_range);
-    r.out = model.PredictAugmented(standardised, c.rotations, c.mirror, true);
-  } else {
-    r.out = model.PredictAugmented(s, c.rotations, c.mirror, true);
-  }
-  const int nc = static_cast<int>(rfs_to_cad.size());
-  if (!c.class_bias.empty()) {
-    r.out.semantic = r.out.PerPoint(
-        pipeline::ApplyClassBias(c.class_bias, &r.out.semantic_prob, nc), s.points.size());
-  }
-  if (c.vote_radius > 0) {
-    std::vector<bool> is_thing(nc, true);
-    is_thing[data::kWall] = is_thing[data::kFloor] = false;
-    r.out.semantic =
-        pipeline::VoteSemantics(s.points, r.out.offsets, r.out.semantic, r.out.semantic_prob,
-                                is_thing, instance_config.semantic_vote, r.out.point_row);
-  }
-  std::vector<int> cad(r.out.semantic.size());
-  for (std::size_t i = 0; i < cad.size(); ++i) cad[i] = rfs_to_cad[r.out.semantic[i]];
-  // Every pass's clusters (no NMS), down to prepare's own --min-points.
-  pipeline::ClusteringConfig cc = instance_config.clustering;
+  r.result = seg.RunNetwork(input, /*with_features=*/true);
+  pipeline::Stage1Segmenter::FinishLabels(input.points, st.config, &r.result);
+  pipeline::ClusteringConfig cc = st.config.InstanceConfig().clustering;
   cc.min_points = std::max(1, min_points);
-  r.proposals = pipeline::MultiScaleClusters(s.points, r.out.offsets, cad, cc);
-  for (const auto& p : r.proposals) {
-    r.headings.push_back(pipeline::ProposalHeading(p.points, r.out.heading_prob,
-                                                   r.out.heading_residual, r.out.point_row));
-    double score = 0;
-    for (int i : p.points) {
-      const float* row = r.out.SemanticProb(static_cast<std::size_t>(i), nc);
-      for (int c = 0; c < nc; ++c) {
-        if (rfs_to_cad[c] == p.label) score += row[c];
-      }
-    }
-    r.scores.push_back(score / static_cast<double>(p.points.size()));
-  }
+  const pipeline::Stage1Result& o = r.result;
+  r.proposals = pipeline::ScoredStage1Proposals(input.points, o.offsets, o.cad_label,
+                                                o.semantic_prob, o.heading_prob, o.heading_residual,
+                                                pipeline::Stage1RfsToCad(), cc, o.point_row);
   return r;
 }
 
@@ -228,23 +192,24 @@ void RunPrepare(const PrepareArgs& a) {
       } catch (const std::exception& e) {
         throw ParseError(dir, e.what());
       }
-      const Stage1Proposals sp = RunStage1(stage1, sample, st, a.min_points);
+      const Stage1Proposals sp = RunStage1(stage1, sample, st, a.min_points, dir);
       std::vector<std::vector<int>> lists;
       for (const auto& p : sp.proposals) lists.push_back(p.points);
       const auto matches = pipeline::MatchProposals(lists, sample.instance,
                                                     static_cast<int>(sample.instances.size()));
       std::vector<bool> matched(scene.instances.size(), false);
       for (const auto& in : scene.instances) gt_cad += in.cad_class >= 0 ? 1 : 0;
-      const int fd = stage1.config().widths[0];
+      const int fd = sp.result.feature_dim;
+      const float floor_z = sp.result.network_origin.z();
       for (std::size_t k = 0; k < sp.proposals.size(); ++k) {
         const auto& p = sp.proposals[k];
-        if (p.label < 0 || p.label >= nn::kStage2CadClasses) continue;
+        if (p.cad_class < 0 || p.cad_class >= nn::kStage2CadClasses) continue;
         pipeline::ProposalFrame frame;
         nn::Stage2Sample s =
-            pipeline::CanonicaliseProposal(sample.points, sp.out.features, fd, sp.out.frame.floor_z,
-                                           p.points, p.label, sp.headings[k], &frame);
+            pipeline::CanonicaliseProposal(sample.points, sp.result.features, fd, floor_z, p.points,
+                                           p.cad_class, p.heading, &frame);
         s.scene = name;
-        s.prior_score = static_cast<float>(sp.scores[k]);
+        s.prior_score = static_cast<float>(p.score);
         const auto& m = matches[k];
         const data::SynthInstance* gt = m.gt >= 0 ? &scene.instances[m.gt] : nullptr;
         const Eigen::VectorXf* code = nullptr;

@@ -676,6 +676,39 @@ TEST(Stage1Instances, ThreeObjectsWithPerfectOffsets) {
   EXPECT_EQ(with_small[0].cad_class, 1);
   EXPECT_EQ(Sorted(with_small[0].points), members[3]);
 
+  // Every pass's proposals before the size filter and NMS (stage-2 training samples): each of
+  // the 4 objects once per pass (exact offsets), with its score; the instances above are among
+  // them with the same score and heading.
+  const ClusteringConfig passes;
+  const std::vector<ScoredInstance> all =
+      ScoredStage1Proposals(points, offsets, cad, sem, prob, res, rfs_to_cad, passes);
+  ASSERT_EQ(all.size(), objects.size() * passes.passes.size());
+  const double score_of[] = {0.7, 0.9, 0.6, 1.0};
+  std::vector<int> per_object(objects.size(), 0);
+  for (const auto& p : all) {
+    int k = -1;
+    for (int j = 0; j < static_cast<int>(members.size()); ++j) {
+      if (Sorted(p.points) == members[j]) k = j;
+    }
+    ASSERT_GE(k, 0);
+    ++per_object[k];
+    EXPECT_EQ(p.cad_class, objects[k].cad) << k;
+    EXPECT_NEAR(p.score, score_of[k], 1e-6) << k;
+  }
+  for (int count : per_object) EXPECT_EQ(count, static_cast<int>(passes.passes.size()));
+  for (const auto& inst : out) {
+    bool found = false;
+    for (const auto& p : all) {
+      if (p.points != inst.points) continue;
+      found = true;
+      EXPECT_EQ(p.score, inst.score);
+      EXPECT_EQ(p.heading, inst.heading);
+    }
+    EXPECT_TRUE(found);
+  }
+  EXPECT_THROW(ScoredStage1Proposals(points, offsets, cad, sem, prob, res, {0, 1}, passes),
+               InvalidArgument);
+
   // Bad inputs.
   std::vector<int> bad_cad = cad;
   bad_cad[5] = 8;

@@ -211,6 +211,31 @@ TEST(Stage1Segmenter, RunsTheWholeChainWithBiasVoteAndTimings) {
   for (std::size_t k = 0; k < c.instances.size(); ++k) {
     EXPECT_EQ(split.instances[k].points, c.instances[k].points);
   }
+  // FinishLabels is Finish without the clustering (labels, no instances), and the proposals of
+  // every pass (ScoredStage1Proposals, what `dimr stage2 prepare` samples) hold each instance
+  // with its score and heading, bit for bit.
+  Stage1Result labels = chairs.RunNetwork(room);
+  Stage1Segmenter::FinishLabels(room.points, chairs.config(), &labels);
+  EXPECT_EQ(labels.semantic, c.semantic);
+  EXPECT_EQ(labels.cad_label, c.cad_label);
+  EXPECT_TRUE(labels.instances.empty());
+  EXPECT_FALSE(labels.timings.has("clustering"));
+  const std::vector<ScoredInstance> proposals =
+      ScoredStage1Proposals(room.points, labels.offsets, labels.cad_label, labels.semantic_prob,
+                            labels.heading_prob, labels.heading_residual, Stage1RfsToCad(),
+                            chairs.config().InstanceConfig().clustering, labels.point_row);
+  ASSERT_GE(proposals.size(), c.instances.size());
+  for (const auto& inst : c.instances) {
+    int found = 0;
+    for (const auto& p : proposals) {
+      if (p.points == inst.points && p.cad_class == inst.cad_class) {
+        ++found;
+        EXPECT_EQ(p.score, inst.score);
+        EXPECT_EQ(p.heading, inst.heading);
+      }
+    }
+    EXPECT_GE(found, 1);
+  }
   // Bias, vote, scores and headings read the per-voxel rows (one pass) or the per-point rows
   // in voxel order (test-time augmentation) as the same rows spread to every point would give
   // them (a wrong point -> row lookup changes labels, scores or headings).

@@ -65,6 +65,19 @@ std::vector<ScoredInstance> ExtractStage1Instances(
     const std::vector<int>& rfs_to_cad, const Stage1InstanceConfig& config,
     const std::vector<std::int64_t>& point_row = {});
 
+// The proposals ExtractStage1Instances starts from: every pass of `clustering`
+// (MultiScaleClusters' order, clusters of >= clustering.min_points points), each scored and
+// with its heading vote exactly as above, but without the size filter and without NMS - what
+// stage-2 training samples are drawn from (`dimr stage2 prepare`). The instances of
+// ExtractStage1Instances with the same clustering are those of these proposals with
+// > min_points points that survive NMS. Same inputs and errors as ExtractStage1Instances.
+std::vector<ScoredInstance> ScoredStage1Proposals(
+    const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3f>& offsets,
+    const std::vector<int>& cad_label, const std::vector<float>& semantic_prob,
+    const std::vector<float>& heading_prob, const std::vector<float>& heading_residual,
+    const std::vector<int>& rfs_to_cad, const ClusteringConfig& clustering,
+    const std::vector<std::int64_t>& point_row = {});
+
 }  // namespace dimr::pipeline
 
 namespace dimr::pipeline {

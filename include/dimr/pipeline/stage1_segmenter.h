@@ -168,6 +168,11 @@ class Stage1Segmenter {
   Stage1Result RunNetwork(const PointCloudInput& input, bool with_features = false) const;
   static void Finish(const std::vector<Eigen::Vector3f>& points,
                      const Stage1InferenceConfig& config, Stage1Result* result);
+  // The first part of Finish: the class bias, the vote and cad_label (timings "class_bias",
+  // "vote"), no clustering - for callers that cluster differently, e.g. `dimr stage2 prepare`,
+  // which takes every pass's proposals without NMS (ScoredStage1Proposals).
+  static void FinishLabels(const std::vector<Eigen::Vector3f>& points,
+                           const Stage1InferenceConfig& config, Stage1Result* result);
 
  private:
   struct Impl;
