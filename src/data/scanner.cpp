@@ -610,7 +610,10 @@ const config::Fields<ScannerConfig>& ScannerFields() {
               0, 100000000)
           .Number(
               "tsdf_target_spacing", [](C& c) -> double& { return c.tsdf.target_spacing; }, "m",
-              "decimation lattice edge", 0.002, 0.5);
+              "decimation lattice edge", 0.002, 0.5)
+          .Number(
+              "tsdf_open3d_simplify", [](C& c) -> int& { return c.tsdf.open3d_simplify; }, "",
+              "1 = Open3D's cleaning + decimation instead of dimr's (A/B)", 0, 1);
   return fields;
 }
 

@@ -24,6 +24,7 @@
 
 #include "dimr/geometry/error.h"
 #include "dimr/geometry/kdtree.h"
+#include "dimr/geometry/mesh_simplify.h"
 
 namespace dimr::data {
 
@@ -41,6 +42,7 @@ void TsdfConfig::Validate() const {
     fail("block_resolution must be a power of two in [4, 64]");
   if (!(max_depth > 0.1 && max_depth <= 20)) fail("max_depth must be in (0.1, 20] m");
   if (min_component_triangles < 0) fail("min_component_triangles must be >= 0");
+  if (open3d_simplify != 0 && open3d_simplify != 1) fail("open3d_simplify must be 0 or 1");
   if (!(target_spacing >= voxel_size && target_spacing <= 0.5))
     fail("target_spacing must be in [voxel_size, 0.5] m");
 }
@@ -101,6 +103,69 @@ void TsdfFusion::Integrate(const RgbdFrame& f) {
   ++frames_;
 }
 
+namespace {
+
+// Triangle budget of a regular lattice with `spacing` over `area`.
+int DecimationTarget(double area, double spacing) {
+  const double tri_area = std::sqrt(3.0) / 4.0 * spacing * spacing;
+  return static_cast<int>(std::clamp(area / tri_area, 4.0, 2.0e9));
+}
+
+// Open3D 0.16's cleaning and decimation (open3d_simplify = 1): `fine` gets the cleaned mesh
+// with its colours, the return value the decimated one.
+geometry::TriangleMesh Open3dSimplify(o3d::geometry::TriangleMesh* mc, const TsdfConfig& config,
+                                      geometry::TriangleMesh* fine, FusedMesh* out) {
+  Stopwatch watch;
+  if (config.min_component_triangles > 0) {
+    std::vector<int> cluster;
+    std::vector<std::size_t> cluster_size;
+    std::vector<double> cluster_area;
+    std::tie(cluster, cluster_size, cluster_area) = mc->ClusterConnectedTriangles();
+    std::vector<bool> remove(mc->triangles_.size(), false);
+    for (std::size_t t = 0; t < cluster.size(); ++t) {
+      remove[t] = cluster[t] < 0 || cluster_size[cluster[t]] <
+                                        static_cast<std::size_t>(config.min_component_triangles);
+    }
+    for (std::size_t s : cluster_size) {
+      if (s < static_cast<std::size_t>(config.min_component_triangles)) ++out->removed_components;
+    }
+    mc->RemoveTrianglesByMask(remove);
+    mc->RemoveUnreferencedVertices();
+  }
+  mc->RemoveDegenerateTriangles();
+  fine->vertices.assign(mc->vertices_.begin(), mc->vertices_.end());
+  fine->faces.assign(mc->triangles_.begin(), mc->triangles_.end());
+  if (mc->HasVertexColors()) {
+    fine->vertex_colors.resize(fine->vertices.size());
+    for (std::size_t i = 0; i < fine->vertices.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        fine->vertex_colors[i][k] = static_cast<std::uint8_t>(
+            std::clamp(std::lround(mc->vertex_colors_[i][k] * 255.0), 0L, 255L));
+      }
+    }
+  }
+  out->timings.Add("clean", watch.ElapsedMs());
+  geometry::TriangleMesh dec;
+  if (mc->triangles_.empty()) return dec;
+  watch.Restart();
+  out->surface_area = mc->GetSurfaceArea();
+  const int target = DecimationTarget(out->surface_area, config.target_spacing);
+  std::shared_ptr<o3d::geometry::TriangleMesh> d;
+  if (static_cast<std::size_t>(target) < mc->triangles_.size()) {
+    d = mc->SimplifyQuadricDecimation(target, std::numeric_limits<double>::infinity(), 1.0);
+    d->RemoveUnreferencedVertices();
+    dec.vertices.assign(d->vertices_.begin(), d->vertices_.end());
+    dec.faces.assign(d->triangles_.begin(), d->triangles_.end());
+  } else {
+    dec.vertices = fine->vertices;
+    dec.faces = fine->faces;
+  }
+  out->timings.Add("decimate", watch.ElapsedMs());
+  return dec;
+}
+
+}  // namespace
+
 FusedMesh TsdfFusion::Extract() {
   if (impl_->extracted) throw Error("TsdfFusion::Extract: called twice");
   impl_->extracted = true;
@@ -113,54 +178,53 @@ FusedMesh TsdfFusion::Extract() {
   if (!mc || mc->triangles_.empty()) return out;
   out.marching_cubes_vertices = mc->vertices_.size();
   out.marching_cubes_triangles = mc->triangles_.size();
-  // Small-component cleaning (floating fragments of noise and flying pixels).
-  watch.Restart();
-  if (config_.min_component_triangles > 0) {
-    std::vector<int> cluster;
-    std::vector<std::size_t> cluster_size;
-    std::vector<double> cluster_area;
-    std::tie(cluster, cluster_size, cluster_area) = mc->ClusterConnectedTriangles();
-    std::vector<bool> remove(mc->triangles_.size(), false);
-    for (std::size_t t = 0; t < cluster.size(); ++t) {
-      remove[t] = cluster[t] < 0 || cluster_size[cluster[t]] <
-                                        static_cast<std::size_t>(config_.min_component_triangles);
-    }
-    for (std::size_t s : cluster_size) {
-      if (s < static_cast<std::size_t>(config_.min_component_triangles)) ++out.removed_components;
-    }
-    mc->RemoveTrianglesByMask(remove);
-    mc->RemoveUnreferencedVertices();
-  }
-  if (mc->triangles_.empty()) return out;
-  mc->RemoveDegenerateTriangles();
-  out.surface_area = mc->GetSurfaceArea();
-  out.timings.Add("clean", watch.ElapsedMs());
-  watch.Restart();
-  // Vertex colours of the fine mesh, for the decimated vertices (nearest fine vertex).
-  std::vector<geometry::Vec3> fine(mc->vertices_.begin(), mc->vertices_.end());
-  std::vector<geometry::Color> fine_color(fine.size(), geometry::Color(128, 128, 128));
-  if (mc->HasVertexColors()) {
-    for (std::size_t i = 0; i < fine.size(); ++i) {
-      for (int k = 0; k < 3; ++k) {
-        fine_color[i][k] = static_cast<std::uint8_t>(
-            std::clamp(std::lround(mc->vertex_colors_[i][k] * 255.0), 0L, 255L));
+  geometry::TriangleMesh fine, dec;
+  if (config_.open3d_simplify) {
+    dec = Open3dSimplify(mc.get(), config_, &fine, &out);
+    mc.reset();
+  } else {
+    // The marching-cubes mesh in our arrays, then small-component cleaning (floating fragments
+    // of noise and flying pixels) and degenerate faces.
+    watch.Restart();
+    fine.vertices.assign(mc->vertices_.begin(), mc->vertices_.end());
+    fine.faces.assign(mc->triangles_.begin(), mc->triangles_.end());
+    fine.vertex_colors.assign(fine.vertices.size(), geometry::Color(128, 128, 128));
+    if (mc->HasVertexColors()) {
+      for (std::size_t i = 0; i < fine.vertices.size(); ++i) {
+        for (int k = 0; k < 3; ++k) {
+          fine.vertex_colors[i][k] = static_cast<std::uint8_t>(
+              std::clamp(std::lround(mc->vertex_colors_[i][k] * 255.0), 0L, 255L));
+        }
       }
     }
+    mc.reset();
+    out.removed_components =
+        geometry::RemoveSmallComponents(&fine, config_.min_component_triangles).removed_components;
+    out.timings.Add("clean", watch.ElapsedMs());
+    if (!fine.faces.empty()) {
+      // Quadric decimation to the triangle budget of a regular lattice with `target_spacing`.
+      watch.Restart();
+      out.surface_area = fine.SurfaceArea();
+      geometry::QuadricDecimationConfig dc;
+      dc.target_faces =
+          static_cast<std::size_t>(DecimationTarget(out.surface_area, config_.target_spacing));
+      if (dc.target_faces < fine.faces.size()) {
+        dec = geometry::DecimateQuadric(fine.vertices, fine.faces, dc);
+      } else {
+        dec.vertices = fine.vertices;
+        dec.faces = fine.faces;
+      }
+      out.timings.Add("decimate", watch.ElapsedMs());
+    }
   }
-  // Quadric decimation to the triangle budget of a regular lattice with `target_spacing`.
-  const double tri_area = std::sqrt(3.0) / 4.0 * config_.target_spacing * config_.target_spacing;
-  const int target = static_cast<int>(std::clamp(out.surface_area / tri_area, 4.0, 2.0e9));
-  std::shared_ptr<o3d::geometry::TriangleMesh> dec = mc;
-  if (static_cast<std::size_t>(target) < mc->triangles_.size()) {
-    dec = mc->SimplifyQuadricDecimation(target, std::numeric_limits<double>::infinity(), 1.0);
-    dec->RemoveUnreferencedVertices();
-  }
-  out.timings.Add("decimate", watch.ElapsedMs());
+  if (dec.faces.empty()) return out;
+  // Vertex colours of the decimated vertices: those of the nearest fine vertex.
   watch.Restart();
-  mc.reset();
-  out.mesh.vertices.assign(dec->vertices_.begin(), dec->vertices_.end());
-  out.mesh.faces.assign(dec->triangles_.begin(), dec->triangles_.end());
-  const geometry::KdTree tree(std::move(fine));
+  std::vector<geometry::Color> fine_color = std::move(fine.vertex_colors);
+  fine_color.resize(fine.vertices.size(), geometry::Color(128, 128, 128));
+  out.mesh.vertices = std::move(dec.vertices);
+  out.mesh.faces = std::move(dec.faces);
+  const geometry::KdTree tree(std::move(fine.vertices));
   out.colors.reserve(out.mesh.vertices.size());
   for (const auto& v : out.mesh.vertices) {
     const auto nn = tree.Nearest(v);

@@ -60,6 +60,9 @@ struct RunResult {
   std::vector<SceneSummary> summaries;
   double seconds = 0;
   std::size_t bytes = 0;
+  // Scanner stages summed over every scene (ray_cast; scannet mode: integrate, marching_cubes,
+  // clean, decimate, colour, labels) and the whole of GenerateScene ("scene"), in thread ms.
+  dimr::Timings stages;
 };
 
 void ParseShard(const std::string& s, int* index, int* count) {
@@ -188,6 +191,7 @@ RunResult RunSynth(const SynthOptions& o) {
   std::vector<dimr::data::Scan2CadScene> s2c(indices.size());
   std::map<std::string, dimr::data::CadModel> models;
   std::mutex mu;
+  dimr::Timings stages;
   Progress progress(static_cast<int>(indices.size()), o.quiet);
   const dimr::Stopwatch elapsed;
   // Every scene writes its own files and slots; a failure stops the others after their scene.
@@ -196,7 +200,9 @@ RunResult RunSynth(const SynthOptions& o) {
     const dimr::Stopwatch scene_time;
     const std::uint64_t seed = dimr::data::SceneSeed(o.seed, o.split, i);
     const std::string name = dimr::data::SceneName(o.split, i);
+    const dimr::Stopwatch generate_time;
     const GeneratedScene g = dimr::data::GenerateScene(config, seed, name, source);
+    const double generate_ms = generate_time.ElapsedMs();
     dimr::data::WriteScanNetScene((out / "scans").string(), g.scene);
 #ifdef DIMR_HAVE_ROS
     if (o.bags) {
@@ -221,6 +227,8 @@ RunResult RunSynth(const SynthOptions& o) {
     {
       std::lock_guard<std::mutex> lock(mu);
       for (const auto& m : g.cad_models) models.emplace(m->model_id, *m);
+      stages.Add("scene", generate_ms);
+      stages.Merge(g.scan.timings);
     }
     progress.Tick();
   });
@@ -238,6 +246,7 @@ RunResult RunSynth(const SynthOptions& o) {
   r.seconds = elapsed.ElapsedSeconds();
   r.summaries = std::move(summaries);
   r.bytes = FolderBytes(out);
+  r.stages = std::move(stages);
   return r;
 }
 
@@ -257,6 +266,27 @@ void PrintSummary(const RunResult& r) {
   std::printf("CAD objects per class:");
   for (const auto& [name, n] : per_class) std::printf(" %s=%d", name.c_str(), n);
   std::printf("\n\n%s", dimr::data::RealismReport(r.summaries).c_str());
+}
+
+// Where a scene's time goes: per-scene milliseconds of each scanner stage, and its share of
+// GenerateScene ("scene" = room composition + scan + labels; the rest is composition and the
+// scene's bookkeeping). Wall time of each stage in its own thread, so it adds up to
+// jobs x the run's wall time.
+void PrintStages(const RunResult& r) {
+  if (r.summaries.empty() || r.stages.empty()) return;
+  const double n = static_cast<double>(r.summaries.size());
+  const double scene = r.stages.ms("scene");
+  std::printf("\n| stage | ms per scene | share of the scene |\n|---|---:|---:|\n");
+  double staged = 0;
+  for (const auto& [name, ms] : r.stages) {
+    if (name == "scene") continue;
+    staged += ms;
+    std::printf("| %s | %.0f | %.1f %% |\n", name.c_str(), ms / n,
+                scene > 0 ? 100.0 * ms / scene : 0.0);
+  }
+  std::printf("| rest (room, shading set-up, bookkeeping) | %.0f | %.1f %% |\n",
+              (scene - staged) / n, scene > 0 ? 100.0 * (scene - staged) / scene : 0.0);
+  std::printf("| **GenerateScene** | %.0f | 100 %% |\n", scene / n);
 }
 
 void AddCommon(CLI::App& app, SynthOptions* o) {
@@ -327,6 +357,7 @@ void SetupBench(CLI::App& app) {
                 o->scenes, o->frames, o->density.c_str(), std::thread::hardware_concurrency());
     PrintSummary(r);
     std::printf("\noutput: %.1f MB\n", r.bytes / 1e6);
+    PrintStages(r);
     if (!json_out->empty()) {
       nlohmann::json j;
       j["scenes"] = r.summaries.size();
@@ -343,6 +374,9 @@ void SetupBench(CLI::App& app) {
       j["points_per_scene"] = static_cast<double>(pts) / r.summaries.size();
       j["points_per_occupied_2cm_voxel"] = v2 ? static_cast<double>(pts) / v2 : 0.0;
       j["realism_markdown"] = dimr::data::RealismReport(r.summaries);
+      nlohmann::json st = nlohmann::json::object();
+      for (const auto& [name, ms] : r.stages) st[name] = ms / r.summaries.size();
+      j["stage_ms_per_scene"] = st;
       std::ofstream f(*json_out);
       if (!f) throw dimr::Error("cannot write '" + *json_out + "'");
       f << j.dump(1) << "\n";

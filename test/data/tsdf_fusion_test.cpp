@@ -175,6 +175,40 @@ TEST(TsdfFusionTest, BoxVerticesLieOnItsFaces) {
       m.timings.ToString().c_str());
 }
 
+// dimr's cleaning + decimation (the default) against Open3D 0.16's (open3d_simplify = 1, what
+// SynthScan v2 used before): the same cleaned surface, about as many vertices, the same
+// spacing and the same closeness to the box.
+TEST(TsdfFusionTest, DimrAndOpen3dSimplificationAgree) {
+  TsdfConfig c;
+  const FusedMesh ours = FuseBox(c);
+  c.open3d_simplify = 1;
+  const FusedMesh theirs = FuseBox(c);
+  EXPECT_EQ(ours.marching_cubes_triangles, theirs.marching_cubes_triangles);
+  EXPECT_EQ(ours.removed_components, theirs.removed_components);
+  EXPECT_NEAR(ours.surface_area, theirs.surface_area, 1e-9 * theirs.surface_area);
+  const double nv = static_cast<double>(theirs.mesh.vertices.size());
+  EXPECT_NEAR(static_cast<double>(ours.mesh.vertices.size()), nv, 0.1 * nv);
+  EXPECT_LE(ours.mesh.faces.size(), theirs.mesh.faces.size() + 2);
+  auto median_nn = [](const FusedMesh& m) {
+    const geometry::KdTree tree(m.mesh.vertices);
+    std::vector<double> nn;
+    for (const auto& p : m.mesh.vertices) nn.push_back(std::sqrt(tree.KNearest(p, 2)[1].second));
+    std::nth_element(nn.begin(), nn.begin() + nn.size() / 2, nn.end());
+    return nn[nn.size() / 2];
+  };
+  EXPECT_NEAR(median_nn(ours), median_nn(theirs), 0.1 * median_nn(theirs));
+  auto p90_distance = [](const FusedMesh& m) {
+    std::vector<double> d;
+    for (const auto& p : m.mesh.vertices) d.push_back(BoxDistance(p));
+    std::sort(d.begin(), d.end());
+    return d[d.size() * 9 / 10];
+  };
+  EXPECT_LT(p90_distance(ours), 1.2 * p90_distance(theirs) + 5e-4);
+  std::printf("dimr: %zu vertices, decimate %.0f ms; open3d: %zu vertices, decimate %.0f ms\n",
+              ours.mesh.vertices.size(), ours.timings.ms("decimate"), theirs.mesh.vertices.size(),
+              theirs.timings.ms("decimate"));
+}
+
 TEST(TsdfFusionTest, SmallComponentsAreRemovedAndOutputIsDeterministic) {
   TsdfConfig c;
   c.target_spacing = 0.03;

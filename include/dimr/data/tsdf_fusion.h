@@ -2,9 +2,10 @@
 // marching cubes, small-component cleaning and quadric decimation to ScanNet's vertex density
 // (the chain that made ScanNet's `vh_clean_2` meshes, whose vertices DIMR consumes).
 //
-// The implementation (src/data/tsdf_fusion.cpp) uses Open3D 0.16's ScalableTSDFVolume,
-// TriangleMesh::ClusterConnectedTriangles and TriangleMesh::SimplifyQuadricDecimation; this
-// header is Open3D-free (pimpl), so only one translation unit pays for Open3D's headers.
+// The implementation (src/data/tsdf_fusion.cpp) uses Open3D 0.16's ScalableTSDFVolume and
+// marching cubes, then geometry::RemoveSmallComponents and geometry::DecimateQuadric (or, with
+// open3d_simplify, Open3D's own cleaning and decimation); this header is Open3D-free (pimpl),
+// so only one translation unit pays for Open3D's headers.
 #pragma once
 
 #include <Eigen/Geometry>
@@ -28,6 +29,10 @@ struct TsdfConfig {
   // triangle budget is 2 * area / (sqrt(3)/2 * spacing^2) of the marching-cubes mesh.
   // ScanNet's vh_clean_2 rooms: NN spacing p50 1.3-2.9 cm.
   double target_spacing = 0.02;
+  // 0: cleaning and decimation by geometry/mesh_simplify.h (~10x faster); 1: Open3D 0.16's
+  // ClusterConnectedTriangles + SimplifyQuadricDecimation (what SynthScan v2 used before
+  // 2026-12-03; kept for A/B measurements, docs/synthscan.md "Decimation").
+  int open3d_simplify = 0;
   // Throws dimr::InvalidArgument naming the bad field.
   void Validate() const;
 };
