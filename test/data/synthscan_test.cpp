@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <nlohmann/json.hpp>
 #include <set>
 
 #include "dimr/data/labels.h"
@@ -277,6 +278,42 @@ TEST(SynthCliTest, ScannerOverridesAreAppliedAndRecordedAndPicturesWritten) {
                &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(out.find("titles"), std::string::npos) << out;
+  fs::remove_all(root);
+}
+TEST(SynthCliTest, BenchReportsWhereTheSceneTimeGoes) {
+  if (!fs::exists(DIMR_CLI)) GTEST_SKIP() << "dimr CLI not built";
+  const fs::path root = fs::temp_directory_path() / ("synth_bench_" + std::to_string(::getpid()));
+  fs::create_directories(root);
+  int status = 0;
+  for (const std::string density : {"mesh", "scannet"}) {
+    const fs::path json = root / (density + ".json");
+    const std::string out = RunCli(
+        "bench synth --scenes 1 --seed 9 --split test --frames-per-scene 3 --jobs 1 "
+        "--density " +
+            density + " --json " + json.string(),
+        &status);
+    if (density == "scannet" && status != 0 && out.find("Open3D") != std::string::npos)
+      continue;  // a build without Open3D
+    ASSERT_EQ(status, 0) << out;
+    EXPECT_NE(out.find("| ray_cast |"), std::string::npos) << out;
+    EXPECT_NE(out.find("| **GenerateScene** |"), std::string::npos) << out;
+    const nlohmann::json j = nlohmann::json::parse(Slurp(json));
+    const auto& st = j.at("stage_ms_per_scene");
+    const double scene = st.at("scene").get<double>();
+    EXPECT_GT(st.at("ray_cast").get<double>(), 0.0);
+    EXPECT_LE(st.at("ray_cast").get<double>(), scene);
+    double staged = 0;
+    for (const auto& [name, ms] : st.items()) {
+      if (name != "scene") staged += ms.get<double>();
+    }
+    EXPECT_LE(staged, scene * 1.001 + 1.0);  // the stages are parts of GenerateScene
+    if (density == "scannet") {
+      for (const char* k : {"integrate", "marching_cubes", "clean", "decimate", "colour", "labels"})
+        EXPECT_TRUE(st.contains(k)) << k << " missing: " << st.dump();
+    } else {
+      EXPECT_FALSE(st.contains("decimate")) << st.dump();
+    }
+  }
   fs::remove_all(root);
 }
 #endif
