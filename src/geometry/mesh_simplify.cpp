@@ -159,6 +159,15 @@ class CandidateHeap {
     }
     h_[i] = c;
   }
+  std::size_t size() const { return h_.size(); }
+  // Drops every entry `dead` says is outdated and re-heapifies (linear).
+  template <typename Dead>
+  std::size_t Purge(Dead dead) {
+    const std::size_t n = h_.size();
+    h_.erase(std::remove_if(h_.begin(), h_.end(), dead), h_.end());
+    Build();
+    return n - h_.size();
+  }
   Candidate Pop() {
     const Candidate top = h_[0];
     const Candidate last = h_.back();
@@ -395,6 +404,13 @@ TriangleMesh DecimateQuadric(const std::vector<Vec3>& vertices, const std::vecto
   };
 
   std::size_t live = tri.size();
+  // Outdated entries (of a dead vertex or older stamps) would each cost a full pop, a cache miss
+  // per level; once they could be half the heap they are swept out in one linear pass instead.
+  std::size_t outdated_bound = 0;
+  auto outdated = [&](const Candidate& c) {
+    return vertex_dead[c.a] || vertex_dead[c.b] || stamp[c.a] != c.stamp_a ||
+           stamp[c.b] != c.stamp_b;
+  };
   while (live > config.target_faces && !heap.empty()) {
     const Candidate e = heap.Pop();
     const int a = e.a, b = e.b;
@@ -449,7 +465,13 @@ TriangleMesh DecimateQuadric(const std::vector<Vec3>& vertices, const std::vecto
     ++stats.collapses;
     stats.max_collapse_error = std::max(stats.max_collapse_error, cost);
     collect_neighbours(a, false);
+    // Every edge of a is pushed again and b's old edges die: at most this many entries outdated.
+    outdated_bound += 2 * neighbours.size() + 2;
     for (int w : neighbours) heap.Push(candidate(a, w));
+    if (2 * outdated_bound > heap.size()) {
+      stats.purged_entries += heap.Purge(outdated);
+      outdated_bound = 0;
+    }
   }
 
   TriangleMesh out;

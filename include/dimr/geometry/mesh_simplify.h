@@ -62,7 +62,8 @@ struct QuadricDecimationConfig {
 struct DecimationStats {
   std::size_t collapses = 0;
   std::size_t rejected_flips = 0;  // candidates skipped because a face would flip or vanish
-  std::size_t stale_entries = 0;   // heap entries outdated by an earlier collapse
+  std::size_t stale_entries = 0;   // popped entries outdated by an earlier collapse
+  std::size_t purged_entries = 0;  // outdated entries swept out of the heap without a pop
   double max_collapse_error = 0;   // largest quadric error of a performed collapse
 };
 
