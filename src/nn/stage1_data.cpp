@@ -580,7 +580,14 @@ const config::Fields<RealismAugment>& RealismFields() {
           })
           .Number(
               "point_dropout", [](R& c) -> double& { return c.point_dropout; }, "",
-              "largest fraction of points dropped per scene", 0.0, 0.9);
+              "largest fraction of points dropped per scene", 0.0, 0.9)
+          .Number(
+              "instance_mix", [](R& c) -> double& { return c.instance_mix; }, "",
+              "probability that a scene receives CAD instances of another scene of the batch", 0.0,
+              1.0)
+          .Number(
+              "instance_mix_count", [](R& c) -> int& { return c.instance_mix_count; }, "",
+              "instances pasted per mixed scene (at most)", 0, 64);
   return fields;
 }
 }  // namespace
@@ -595,6 +602,75 @@ bool RealismAugment::any_color() const {
 }
 
 void RealismAugment::Validate() const { RealismFields().Validate(*this); }
+
+Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int count,
+                          std::mt19937_64* rng, int min_points) {
+  dst.Validate();
+  src.Validate();
+  if (count < 0) throw InvalidArgument("MixInstances: count must be >= 0");
+  if (rng == nullptr) throw InvalidArgument("MixInstances: null random generator");
+  Stage1Sample out = dst;
+  if (count == 0 || dst.points.empty() || src.points.empty()) return out;
+  // Eligible source instances and their points.
+  std::vector<std::vector<std::size_t>> members(src.instances.size());
+  for (std::size_t i = 0; i < src.points.size(); ++i) {
+    if (src.instance[i] >= 0) members[src.instance[i]].push_back(i);
+  }
+  std::vector<int> eligible;
+  for (std::size_t k = 0; k < src.instances.size(); ++k) {
+    if (src.instances[k].cad_class >= 0 && static_cast<int>(members[k].size()) >= min_points)
+      eligible.push_back(static_cast<int>(k));
+  }
+  if (eligible.empty()) return out;
+  for (std::size_t i = eligible.size(); i-- > 1;) {  // Fisher-Yates on our portable uniform
+    const auto j =
+        std::min(i, static_cast<std::size_t>(Uniform01(rng) * static_cast<double>(i + 1)));
+    std::swap(eligible[i], eligible[j]);
+  }
+  if (static_cast<int>(eligible.size()) > count) eligible.resize(count);
+  Eigen::Vector3f lo = dst.points[0], hi = dst.points[0];
+  for (const auto& p : dst.points) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const float floor_z = EstimateNetworkFrame(dst.points).floor_z;
+  const bool colours = !dst.colors.empty();
+  for (const int k : eligible) {
+    const std::vector<std::size_t>& idx = members[k];
+    Eigen::Vector3f ilo = src.points[idx[0]], ihi = src.points[idx[0]];
+    for (std::size_t i : idx) {
+      ilo = ilo.cwiseMin(src.points[i]);
+      ihi = ihi.cwiseMax(src.points[i]);
+    }
+    const Eigen::Vector2f centre = 0.5f * (ilo + ihi).head<2>();
+    const double angle = 2.0 * M_PI * Uniform01(rng);
+    const float c = static_cast<float>(std::cos(angle)), sn = static_cast<float>(std::sin(angle));
+    // Rotated footprint radius: the half-diagonal bounds it for every angle.
+    const float radius = 0.5f * (ihi - ilo).head<2>().norm();
+    Eigen::Vector2f target;
+    for (int a = 0; a < 2; ++a) {
+      const float span = hi[a] - lo[a] - 2 * radius;
+      target[a] = span > 0 ? lo[a] + radius + static_cast<float>(Uniform01(rng)) * span
+                           : 0.5f * (lo[a] + hi[a]);
+    }
+    const int new_index = static_cast<int>(out.instances.size());
+    Stage1Instance inst = src.instances[k];
+    if (inst.has_heading) inst.heading += angle;
+    out.instances.push_back(inst);
+    const float dz = floor_z - ilo.z();
+    for (std::size_t i : idx) {
+      const Eigen::Vector3f& p = src.points[i];
+      const float x = p.x() - centre.x(), y = p.y() - centre.y();
+      out.points.emplace_back(c * x - sn * y + target.x(), sn * x + c * y + target.y(), p.z() + dz);
+      if (colours) {
+        out.colors.push_back(src.colors.empty() ? Eigen::Vector3f::Constant(0.5f) : src.colors[i]);
+      }
+      out.semantic.push_back(src.semantic[i]);
+      out.instance.push_back(new_index);
+    }
+  }
+  return out;
+}
 
 std::string RealismAugment::ToString() const { return RealismFields().Format(*this); }
 
@@ -832,6 +908,20 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     if (input.use_rgb && src->colors.empty()) {
       throw InvalidArgument("MakeStage1Batch: use_rgb but " + SampleLabel(*src) +
                             " has no colours");
+    }
+    // Instance mixing, on its own stream (without it the batches are bit for bit as before).
+    Stage1Sample mixed;
+    if (aug && augment->realism.instance_mix > 0 && batch.batch_size >= 2) {
+      std::mt19937_64 mix_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0x3171ull));
+      const Stage1Sample* other = samples[(b + 1) % batch.batch_size];
+      if (other == nullptr)
+        throw InvalidArgument("MakeStage1Batch: sample " +
+                              std::to_string((b + 1) % batch.batch_size) + " is null");
+      if (Uniform01(&mix_rng) < augment->realism.instance_mix) {
+        mixed = MixInstances(*src, *other, augment->realism.instance_mix_count, &mix_rng);
+        mixed.name = src->name;
+        src = &mixed;
+      }
     }
     const NetworkFrame frame = EstimateNetworkFrame(src->points);
     batch.frames.push_back(frame);

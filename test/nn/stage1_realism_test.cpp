@@ -184,5 +184,132 @@ TEST(Stage1Realism, TextFormAndBadValues) {
   EXPECT_THROW(a.Validate(), InvalidArgument);
 }
 
+// A room with a floor (semantic 1, no instance) and two CAD instances: a 0.4 m chair-like box
+// with a heading and a small table-like box of only 30 points (below the mixing minimum).
+Stage1Sample Furnished(std::uint64_t seed, float floor_z, bool with_colours = true) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  Stage1Sample s;
+  s.name = "furnished";
+  s.instances.push_back({5, 1, true, 0.3});   // chair, heading 0.3
+  s.instances.push_back({7, 0, false, 0.0});  // table, too small
+  for (int i = 0; i < 3000; ++i) {
+    s.points.emplace_back(3 * u(rng), 3 * u(rng), floor_z);
+    s.semantic.push_back(1);
+    s.instance.push_back(-1);
+  }
+  for (int i = 0; i < 400; ++i) {
+    s.points.emplace_back(1 + 0.4f * u(rng), 1 + 0.2f * u(rng), floor_z + 0.9f * u(rng));
+    s.semantic.push_back(5);
+    s.instance.push_back(0);
+  }
+  for (int i = 0; i < 30; ++i) {
+    s.points.emplace_back(2 + 0.1f * u(rng), 2 + 0.1f * u(rng), floor_z + 0.7f);
+    s.semantic.push_back(7);
+    s.instance.push_back(1);
+  }
+  if (with_colours) {
+    for (std::size_t i = 0; i < s.points.size(); ++i)
+      s.colors.emplace_back(0.2f, 0.4f, s.instance[i] == 0 ? 0.9f : 0.1f);
+  }
+  return s;
+}
+
+TEST(Stage1Realism, MixInstancesPastesCadInstancesOnTheFloorInsideTheRoom) {
+  const Stage1Sample dst = Furnished(1, 0.0f);
+  Stage1Sample src = Furnished(2, 1.5f);  // another room, its floor 1.5 m higher
+  for (auto& p : src.points) p += Eigen::Vector3f(10, -4, 0);  // and far away
+  std::mt19937_64 rng(7);
+  const Stage1Sample m = MixInstances(dst, src, 3, &rng);
+  m.Validate();
+  // Only the chair is eligible (the table has 30 < 50 points): 400 points appended.
+  ASSERT_EQ(m.points.size(), dst.points.size() + 400);
+  ASSERT_EQ(m.instances.size(), 3u);
+  EXPECT_EQ(m.instances[2].semantic, 5);
+  EXPECT_EQ(m.instances[2].cad_class, 1);
+  ASSERT_TRUE(m.instances[2].has_heading);
+  for (std::size_t i = 0; i < dst.points.size(); ++i) {  // dst untouched, in order
+    ASSERT_EQ(m.points[i], dst.points[i]);
+    ASSERT_EQ(m.instance[i], dst.instance[i]);
+  }
+  Eigen::Vector3f lo = Eigen::Vector3f::Constant(1e9f), hi = -lo;
+  for (std::size_t i = dst.points.size(); i < m.points.size(); ++i) {
+    EXPECT_EQ(m.instance[i], 2);
+    EXPECT_EQ(m.semantic[i], 5);
+    EXPECT_FLOAT_EQ(m.colors[i].z(), 0.9f);  // its own colours came along
+    lo = lo.cwiseMin(m.points[i]);
+    hi = hi.cwiseMax(m.points[i]);
+  }
+  EXPECT_NEAR(lo.z(), 0.0f, 1e-5f);  // standing on dst's floor
+  EXPECT_LT(hi.z(), 0.91f);
+  EXPECT_GE(lo.x(), -1e-4f);  // inside dst's 3 m x 3 m footprint
+  EXPECT_GE(lo.y(), -1e-4f);
+  EXPECT_LE(hi.x(), 3.0f + 1e-4f);
+  EXPECT_LE(hi.y(), 3.0f + 1e-4f);
+  // A rigid motion: the pairwise distances of the pasted points are the source's.
+  const std::size_t b = dst.points.size(), sb = 3000;
+  for (int k = 1; k < 50; ++k) {
+    EXPECT_NEAR((m.points[b] - m.points[b + k]).norm(),
+                (src.points[sb] - src.points[sb + k]).norm(), 1e-4f);
+  }
+  // The heading turned with the points: recover the rotation from the x-y footprint of two points.
+  const Eigen::Vector2f d_src = (src.points[sb + 1] - src.points[sb]).head<2>();
+  const Eigen::Vector2f d_dst = (m.points[b + 1] - m.points[b]).head<2>();
+  const double turn = std::atan2(d_dst.y(), d_dst.x()) - std::atan2(d_src.y(), d_src.x());
+  const double dh = m.instances[2].heading - src.instances[0].heading;
+  EXPECT_NEAR(std::remainder(dh - turn, 2 * M_PI), 0.0, 1e-3);
+  // Deterministic; count 0 or nothing eligible returns dst as it was.
+  std::mt19937_64 rng2(7);
+  const Stage1Sample again = MixInstances(dst, src, 3, &rng2);
+  ASSERT_EQ(again.points.size(), m.points.size());
+  for (std::size_t i = 0; i < m.points.size(); ++i) ASSERT_EQ(again.points[i], m.points[i]);
+  EXPECT_EQ(MixInstances(dst, src, 0, &rng).points.size(), dst.points.size());
+  Stage1Sample bare = src;
+  for (auto& inst : bare.instances) inst.cad_class = -1;
+  EXPECT_EQ(MixInstances(dst, bare, 3, &rng).points.size(), dst.points.size());
+  // A colourless source pasted into a coloured room: grey.
+  const Stage1Sample grey_src = Furnished(3, 0.0f, false);
+  const Stage1Sample g = MixInstances(dst, grey_src, 1, &rng);
+  ASSERT_EQ(g.colors.size(), g.points.size());
+  EXPECT_FLOAT_EQ(g.colors.back().x(), 0.5f);
+  EXPECT_THROW(MixInstances(dst, src, -1, &rng), InvalidArgument);
+}
+
+TEST(Stage1Realism, InstanceMixInBatchesOnItsOwnStream) {
+  const Stage1Sample a = Furnished(4, 0.0f), b = Furnished(5, 0.0f);
+  AugmentConfig plain = Plain();
+  AugmentConfig mix = plain;
+  mix.realism.instance_mix = 1.0;
+  mix.realism.instance_mix_count = 2;
+  EXPECT_FALSE(mix.realism.any());  // the point / colour part stays off
+  const Stage1Batch base = MakeStage1Batch({&a, &b}, Rgb(), &plain, 11);
+  const Stage1Batch mixed = MakeStage1Batch({&a, &b}, Rgb(), &mix, 11);
+  // Each scene received the other's chair (400 points); instance ids stay batch-unique.
+  ASSERT_EQ(mixed.num_points(), base.num_points() + 800);
+  EXPECT_EQ(mixed.point_offsets[1], base.point_offsets[1] + 400);
+  std::int64_t max_base = -1, max_mixed = -1;
+  for (auto v : base.instance) max_base = std::max(max_base, v);
+  for (auto v : mixed.instance) max_mixed = std::max(max_mixed, v);
+  EXPECT_EQ(max_mixed, max_base + 2);
+  // The first part of each scene is the unmixed scene's batch, bit for bit.
+  for (std::int64_t i = 0; i < base.point_offsets[1]; ++i) {
+    ASSERT_EQ(mixed.points[3 * i], base.points[3 * i]);
+    ASSERT_EQ(mixed.semantic[i], base.semantic[i]);
+  }
+  // Pasted points have offset targets towards their own (new) instance centre.
+  for (std::int64_t i = base.point_offsets[1]; i < mixed.point_offsets[1]; ++i)
+    EXPECT_EQ(mixed.offset_valid[i], 1);
+  // instance_mix 0: the batch is the plain one exactly; a batch of one scene is never mixed.
+  AugmentConfig off = plain;
+  off.realism.instance_mix = 0;
+  const Stage1Batch same = MakeStage1Batch({&a, &b}, Rgb(), &off, 11);
+  EXPECT_EQ(same.points, base.points);
+  EXPECT_EQ(MakeStage1Batch({&a}, Rgb(), &mix, 11).num_points(),
+            static_cast<std::int64_t>(a.points.size()));
+  EXPECT_EQ(RealismAugment::FromString("instance_mix=0.5 instance_mix_count=4").instance_mix_count,
+            4);
+  EXPECT_THROW(RealismAugment::FromString("instance_mix=1.5"), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::nn

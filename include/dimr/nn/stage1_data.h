@@ -96,7 +96,12 @@ struct RealismAugment {
   double point_noise = 0;  // m
   double scale_min = 1, scale_max = 1;
   double point_dropout = 0;  // largest dropped fraction
-  bool any() const;
+  // Instance mixing (issue 22 item 6, context mixing across rooms): with probability
+  // instance_mix a scene of a batch receives up to instance_mix_count CAD-class instances of
+  // the next scene of the batch (MixInstances below); needs batches of >= 2 scenes.
+  double instance_mix = 0;
+  int instance_mix_count = 3;
+  bool any() const;  // the point / colour part (not instance mixing)
   bool any_color() const;
   void Validate() const;         // throws dimr::InvalidArgument naming the key
   std::string ToString() const;  // every key ("color_jitter=0 ... point_dropout=0")
@@ -111,6 +116,18 @@ void AugmentRealismPoints(std::vector<Eigen::Vector3f>* points, const RealismAug
 std::vector<Eigen::Vector3f> AugmentRealismColors(const std::vector<Eigen::Vector3f>& colors,
                                                   const RealismAugment& config,
                                                   std::mt19937_64* rng);
+// Instance mixing: a copy of `dst` with up to `count` CAD-class instances of `src` (those with
+// cad_class >= 0 and at least `min_points` points, drawn without replacement) appended: each
+// instance's points, colours (0.5 grey when src has none and dst has colours), semantic labels
+// and heading, rotated about z through its own x-y centre by a uniform angle (the heading turns
+// with it), moved to a uniform x-y position that keeps its footprint inside dst's x-y bounding
+// box when it fits (else dst's centre), and lifted or lowered so that its lowest point sits on
+// dst's floor (EstimateNetworkFrame). Points may interpenetrate dst's objects (clutter-like);
+// the pasted instances get new instance indices after dst's. Deterministic in `rng`; count 0 or
+// no eligible instance returns dst unchanged. Throws dimr::InvalidArgument for invalid samples.
+Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int count,
+                          std::mt19937_64* rng, int min_points = 50);
+
 // Drops a fraction U[0, config.point_dropout] of `keep` (order kept, at least one left).
 void AugmentRealismDropout(std::vector<std::size_t>* keep, const RealismAugment& config,
                            std::mt19937_64* rng);
