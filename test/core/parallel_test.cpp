@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <chrono>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -46,11 +47,23 @@ TEST(Parallel, ForVisitsEveryIndexOnceOnTheAskedThreads) {
 }
 
 TEST(Parallel, ForRethrowsTheFirstErrorAndStops) {
+  // Items after 10 wait until item 10 is about to throw, then take 20 us each: the other workers
+  // cannot run out the 100000 items (>= 1 s) before the error stops them, even if the throwing
+  // thread is descheduled for a while on a loaded machine (CI saw ran == 100000 with trivial
+  // items).
   std::atomic<int> ran{0};
+  std::atomic<bool> throwing{false};
   EXPECT_THROW(ParallelFor(100000, 3,
                            [&](std::size_t i) {
                              ran++;
-                             if (i == 10) throw std::runtime_error("item 10");
+                             if (i == 10) {
+                               throwing = true;
+                               throw std::runtime_error("item 10");
+                             }
+                             if (i > 10) {
+                               while (!throwing) std::this_thread::yield();
+                               std::this_thread::sleep_for(std::chrono::microseconds(20));
+                             }
                            }),
                std::runtime_error);
   EXPECT_LT(ran.load(), 100000);  // later items were skipped
