@@ -111,6 +111,24 @@ int DecimationTarget(double area, double spacing) {
   return static_cast<int>(std::clamp(area / tri_area, 4.0, 2.0e9));
 }
 
+// Vertices, faces and (when it has them) 8-bit vertex colours of an Open3D mesh; vertices
+// without a colour are grey downstream (Extract).
+geometry::TriangleMesh ToMesh(const o3d::geometry::TriangleMesh& m) {
+  geometry::TriangleMesh out;
+  out.vertices.assign(m.vertices_.begin(), m.vertices_.end());
+  out.faces.assign(m.triangles_.begin(), m.triangles_.end());
+  if (m.HasVertexColors()) {
+    out.vertex_colors.resize(out.vertices.size());
+    for (std::size_t i = 0; i < out.vertices.size(); ++i) {
+      for (int k = 0; k < 3; ++k) {
+        out.vertex_colors[i][k] = static_cast<std::uint8_t>(
+            std::clamp(std::lround(m.vertex_colors_[i][k] * 255.0), 0L, 255L));
+      }
+    }
+  }
+  return out;
+}
+
 // Open3D 0.16's cleaning and decimation (open3d_simplify = 1): `fine` gets the cleaned mesh
 // with its colours, the return value the decimated one.
 geometry::TriangleMesh Open3dSimplify(o3d::geometry::TriangleMesh* mc, const TsdfConfig& config,
@@ -133,17 +151,7 @@ geometry::TriangleMesh Open3dSimplify(o3d::geometry::TriangleMesh* mc, const Tsd
     mc->RemoveUnreferencedVertices();
   }
   mc->RemoveDegenerateTriangles();
-  fine->vertices.assign(mc->vertices_.begin(), mc->vertices_.end());
-  fine->faces.assign(mc->triangles_.begin(), mc->triangles_.end());
-  if (mc->HasVertexColors()) {
-    fine->vertex_colors.resize(fine->vertices.size());
-    for (std::size_t i = 0; i < fine->vertices.size(); ++i) {
-      for (int k = 0; k < 3; ++k) {
-        fine->vertex_colors[i][k] = static_cast<std::uint8_t>(
-            std::clamp(std::lround(mc->vertex_colors_[i][k] * 255.0), 0L, 255L));
-      }
-    }
-  }
+  *fine = ToMesh(*mc);
   out->timings.Add("clean", watch.ElapsedMs());
   geometry::TriangleMesh dec;
   if (mc->triangles_.empty()) return dec;
@@ -186,17 +194,7 @@ FusedMesh TsdfFusion::Extract() {
     // The marching-cubes mesh in our arrays, then small-component cleaning (floating fragments
     // of noise and flying pixels) and degenerate faces.
     watch.Restart();
-    fine.vertices.assign(mc->vertices_.begin(), mc->vertices_.end());
-    fine.faces.assign(mc->triangles_.begin(), mc->triangles_.end());
-    fine.vertex_colors.assign(fine.vertices.size(), geometry::Color(128, 128, 128));
-    if (mc->HasVertexColors()) {
-      for (std::size_t i = 0; i < fine.vertices.size(); ++i) {
-        for (int k = 0; k < 3; ++k) {
-          fine.vertex_colors[i][k] = static_cast<std::uint8_t>(
-              std::clamp(std::lround(mc->vertex_colors_[i][k] * 255.0), 0L, 255L));
-        }
-      }
-    }
+    fine = ToMesh(*mc);
     mc.reset();
     out.removed_components =
         geometry::RemoveSmallComponents(&fine, config_.min_component_triangles).removed_components;

@@ -44,6 +44,22 @@ struct VertexFaces {
 
 inline bool HasVertex(const Vec3i& t, int v) { return t[0] == v || t[1] == v || t[2] == v; }
 
+// New index (in vertex order) of every vertex one of `faces` references, -1 for the others;
+// *count = how many are referenced.
+std::vector<int> RenumberReferenced(const std::vector<Vec3i>& faces, std::size_t num_vertices,
+                                    int* count) {
+  std::vector<int> remap(num_vertices, -1);
+  for (const Vec3i& t : faces) {
+    for (int k = 0; k < 3; ++k) remap[t[k]] = 0;
+  }
+  int next = 0;
+  for (int& r : remap) {
+    if (r == 0) r = next++;
+  }
+  *count = next;
+  return remap;
+}
+
 int FindRoot(std::vector<int>* parent, int x) {
   std::vector<int>& p = *parent;
   while (p[x] != x) {
@@ -258,14 +274,8 @@ CleanStats RemoveSmallComponents(TriangleMesh* mesh, int min_component_faces) {
     faces.push_back(t);
   }
   stats.removed_faces = mesh->faces.size() - faces.size();
-  std::vector<int> remap(nv, -1);
-  for (const Vec3i& t : faces) {
-    for (int k = 0; k < 3; ++k) remap[t[k]] = 0;
-  }
   int next = 0;
-  for (std::size_t v = 0; v < nv; ++v) {
-    if (remap[v] == 0) remap[v] = next++;
-  }
+  const std::vector<int> remap = RenumberReferenced(faces, nv, &next);
   stats.removed_vertices = nv - static_cast<std::size_t>(next);
   for (Vec3i& t : faces) {
     for (int k = 0; k < 3; ++k) t[k] = remap[t[k]];
@@ -341,9 +351,9 @@ TriangleMesh DecimateQuadric(const std::vector<Vec3>& vertices, const std::vecto
         const double len = side.norm();
         if (!(len > 0)) continue;
         const Vec3 n = side / len;
-        const double w = area[f] * config.boundary_weight;
-        quad[u].AddPlane(n, -n.dot(pos[u]), w);
-        quad[v].AddPlane(n, -n.dot(pos[u]), w);
+        const double d = -n.dot(pos[u]), w = area[f] * config.boundary_weight;
+        quad[u].AddPlane(n, d, w);
+        quad[v].AddPlane(n, d, w);
       }
     }
   }
@@ -414,7 +424,7 @@ TriangleMesh DecimateQuadric(const std::vector<Vec3>& vertices, const std::vecto
   while (live > config.target_faces && !heap.empty()) {
     const Candidate e = heap.Pop();
     const int a = e.a, b = e.b;
-    if (vertex_dead[a] || vertex_dead[b] || stamp[a] != e.stamp_a || stamp[b] != e.stamp_b) {
+    if (outdated(e)) {
       ++stats.stale_entries;
       continue;
     }
@@ -475,21 +485,18 @@ TriangleMesh DecimateQuadric(const std::vector<Vec3>& vertices, const std::vecto
   }
 
   TriangleMesh out;
-  std::vector<int> remap(nv, -1);
-  for (std::size_t f = 0; f < tri.size(); ++f) {
-    if (face_dead[f]) continue;
-    for (int k = 0; k < 3; ++k) remap[tri[f][k]] = 0;
-  }
-  int next = 0;
-  for (std::size_t v = 0; v < nv; ++v) {
-    if (remap[v] != 0) continue;
-    remap[v] = next++;
-    out.vertices.push_back(pos[v]);
-  }
   out.faces.reserve(live);
   for (std::size_t f = 0; f < tri.size(); ++f) {
-    if (face_dead[f]) continue;
-    out.faces.emplace_back(remap[tri[f][0]], remap[tri[f][1]], remap[tri[f][2]]);
+    if (!face_dead[f]) out.faces.push_back(tri[f]);
+  }
+  int next = 0;
+  const std::vector<int> remap = RenumberReferenced(out.faces, nv, &next);
+  out.vertices.resize(next);
+  for (std::size_t v = 0; v < nv; ++v) {
+    if (remap[v] >= 0) out.vertices[remap[v]] = pos[v];
+  }
+  for (Vec3i& t : out.faces) {
+    for (int k = 0; k < 3; ++k) t[k] = remap[t[k]];
   }
   if (stats_out != nullptr) *stats_out = stats;
   return out;

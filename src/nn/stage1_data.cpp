@@ -897,10 +897,13 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
   batch.point_offsets.push_back(0);
   const int C = batch.feature_channels;
   std::int64_t next_instance = 0;
+  // Up front: a scene may take instances from the next one (instance mixing).
+  for (int b = 0; b < batch.batch_size; ++b) {
+    if (samples[b] == nullptr)
+      throw InvalidArgument("MakeStage1Batch: sample " + std::to_string(b) + " is null");
+  }
   for (int b = 0; b < batch.batch_size; ++b) {
     const Stage1Sample* src = samples[b];
-    if (src == nullptr)
-      throw InvalidArgument("MakeStage1Batch: sample " + std::to_string(b) + " is null");
     src->Validate();
     if (src->points.empty()) {
       throw InvalidArgument("MakeStage1Batch: " + SampleLabel(*src) + " has no points");
@@ -914,9 +917,6 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     if (aug && augment->realism.instance_mix > 0 && batch.batch_size >= 2) {
       std::mt19937_64 mix_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0x3171ull));
       const Stage1Sample* other = samples[(b + 1) % batch.batch_size];
-      if (other == nullptr)
-        throw InvalidArgument("MakeStage1Batch: sample " +
-                              std::to_string((b + 1) % batch.batch_size) + " is null");
       if (Uniform01(&mix_rng) < augment->realism.instance_mix) {
         mixed = MixInstances(*src, *other, augment->realism.instance_mix_count, &mix_rng);
         mixed.name = src->name;
