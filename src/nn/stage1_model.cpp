@@ -545,6 +545,45 @@ Stage1Model Stage1Model::Average(const std::vector<std::string>& paths) {
   return mean;
 }
 
+Stage1Model Stage1Model::LoadWithoutColour(const std::string& path) {
+  const Stage1Model colour = Load(path);
+  if (!colour.config().input.use_rgb) {
+    throw InvalidArgument("stage1: '" + path + "' has no colour input (configuration '" +
+                          colour.config().ToString() + "'), nothing to drop");
+  }
+  Stage1Config config = colour.config();
+  config.input.use_rgb = false;
+  Stage1Model geometry(config);
+  torch::NoGradGuard no_grad;
+  const auto source_params = colour.impl_->net->named_parameters();
+  const auto source_buffers = colour.impl_->net->named_buffers();
+  const int64_t xyz = config.input.feature_channels();
+  auto copy = [&](const std::string& name, const torch::Tensor& from, torch::Tensor& to) {
+    if (from.sizes() == to.sizes()) {
+      to.copy_(from);
+      return;
+    }
+    // The only tensor whose shape depends on the input channels: the input convolution's
+    // [k, k, k, cin, cout] weight; its first `xyz` input channels are the coordinates.
+    if (from.dim() == 5 && to.dim() == 5 && from.size(3) > xyz && to.size(3) == xyz &&
+        from.size(4) == to.size(4)) {
+      to.copy_(from.narrow(3, 0, xyz));
+      return;
+    }
+    std::ostringstream msg;
+    msg << "stage1: cannot drop the colour input of '" << path << "': tensor '" << name
+        << "' has shape " << from.sizes() << ", the geometry-only model expects " << to.sizes();
+    throw InvalidArgument(msg.str());
+  };
+  for (auto& item : geometry.impl_->net->named_parameters()) {
+    copy(item.key(), source_params[item.key()], item.value());
+  }
+  for (auto& item : geometry.impl_->net->named_buffers()) {
+    copy(item.key(), source_buffers[item.key()], item.value());
+  }
+  return geometry;
+}
+
 Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
   torch::NoGradGuard no_grad;
   const bool was_training = impl_->net->is_training();

@@ -375,6 +375,14 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   }
   nn::Stage1Model model =
       a.init.empty() ? nn::Stage1Model(config, a.seed) : nn::Stage1Model::Load(a.init);
+  nn::Stage1Config init_without_colour = model.config();
+  init_without_colour.input.use_rgb = false;
+  if (!a.init.empty() && model.config().input.use_rgb && !config.input.use_rgb &&
+      init_without_colour.ToString() == config.ToString()) {
+    // A geometry-only fine-tune of a colour model: the colour input weights are dropped.
+    model = nn::Stage1Model::LoadWithoutColour(a.init);
+    std::printf("--init %s: colour input dropped (rgb=1 -> rgb=0)\n", a.init.c_str());
+  }
   if (model.config().ToString() != config.ToString()) {
     throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
                           model.config().ToString() + "', not the --config '" + config.ToString() +
@@ -478,7 +486,8 @@ void SetupTrain(CLI::App& app) {
       "--class-weights", a->class_weights,
       "semantic loss weights: none (reference) | sqrt-inverse | inverse (of class frequency)");
   app.add_option("--init", a->init,
-                 "start from these stage-1 weights (fine-tuning; same --config; a checkpoint "
+                 "start from these stage-1 weights (fine-tuning; same --config, or the same with "
+                 "rgb=0 to fine-tune a colour model into a geometry-only one; a checkpoint "
                  "in --out still takes precedence)");
   app.add_flag("--lr-by-time", a->lr_by_time,
                "with --max-minutes: decay the learning rate over the time budget rather than "

@@ -348,6 +348,67 @@ TEST(Stage1Model, AverageIsTheMeanOfTheWeights) {
   fs::remove_all(dir);
 }
 
+TEST(Stage1Model, DroppingTheColourInputIsExactForGreyClouds) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "dimr_stage1_drop_colour_test";
+  fs::create_directories(dir);
+  Stage1Config colour_config = TinyConfig();
+  colour_config.input.use_rgb = true;
+  const std::string path = (dir / "colour.pt").string();
+  Stage1Model(colour_config, 11).Save(path);
+  const Stage1Model colour = Stage1Model::Load(path);
+  const Stage1Model geometry = Stage1Model::LoadWithoutColour(path);
+  EXPECT_FALSE(geometry.config().input.use_rgb);
+  Stage1Config expect = colour_config;
+  expect.input.use_rgb = false;
+  EXPECT_EQ(geometry.config().ToString(), expect.ToString());
+  // 3 x 27 x 8 input weights fewer.
+  EXPECT_EQ(colour.NumParameters() - geometry.NumParameters(), 27 * 3 * 8);
+
+  Stage1Sample grey = TinyRoom(12);
+  grey.colors.assign(grey.points.size(), Eigen::Vector3f::Constant(0.5f));
+  Stage1Sample coloured = grey;
+  std::mt19937_64 rng(13);
+  std::uniform_real_distribution<float> u(0, 1);
+  for (auto& c : coloured.colors) c = Eigen::Vector3f(u(rng), u(rng), u(rng));
+  const Stage1Output g = geometry.Predict(grey);
+  const Stage1Output c_grey = colour.Predict(grey);
+  const Stage1Output c_col = colour.Predict(coloured);
+  ASSERT_EQ(g.semantic_prob.size(), c_grey.semantic_prob.size());
+  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
+    double d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
+    return d;
+  };
+  // The colour weights matter (a zero or dropped colour input would not change this) ...
+  EXPECT_GT(max_diff(c_col.semantic_prob, c_grey.semantic_prob), 1e-3);
+  // ... and the geometry-only copy is the colour model on grey input: every head.
+  EXPECT_LT(max_diff(g.semantic_prob, c_grey.semantic_prob), 1e-5);
+  ASSERT_EQ(g.offsets.size(), c_grey.offsets.size());
+  double offset_diff = 0;
+  for (std::size_t i = 0; i < g.offsets.size(); ++i) {
+    offset_diff =
+        std::max(offset_diff, double((g.offsets[i] - c_grey.offsets[i]).cwiseAbs().maxCoeff()));
+  }
+  EXPECT_LT(offset_diff, 1e-5);
+  EXPECT_LT(max_diff(g.heading_prob, c_grey.heading_prob), 1e-5);
+  EXPECT_EQ(g.semantic, c_grey.semantic);
+  // Its colours are ignored: any colours, the same output.
+  EXPECT_LT(max_diff(geometry.Predict(coloured).semantic_prob, g.semantic_prob), 1e-6);
+
+  // A model without colour input has nothing to drop; the message names the file.
+  const std::string plain = (dir / "plain.pt").string();
+  Stage1Model(TinyConfig(), 3).Save(plain);
+  try {
+    Stage1Model::LoadWithoutColour(plain);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("plain.pt"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Stage1Model::LoadWithoutColour((dir / "missing.pt").string()), ParseError);
+  fs::remove_all(dir);
+}
+
 TEST(Stage1Model, BadInputsGiveClearErrors) {
   Stage1Model model(TinyConfig());
   Stage1Sample empty;

@@ -215,6 +215,15 @@ class Stage1Model {
   // (naming both), dimr::ParseError for an unreadable file.
   static Stage1Model Average(const std::vector<std::string>& paths);
 
+  // A geometry-only copy of a colour model: the model of `path` (rgb=1) as a model of the same
+  // configuration with rgb=0, every parameter and buffer copied and the input convolution cut
+  // to its first three (xyz) input channels. Exact for grey input: the colour features are
+  // colour - 0.5, so the colour model on a cloud whose colours are all 0.5 and the copy on
+  // its points compute the same outputs (up to float summation order). The start of a
+  // geometry-only fine-tune (`dimr train stage1 --config '... rgb=0' --init COLOUR_MODEL`).
+  // Throws dimr::InvalidArgument for a model without colour input, dimr::ParseError as Load.
+  static Stage1Model LoadWithoutColour(const std::string& path);
+
   // Trains on `train`. `log` is called every step; `on_epoch` every validate_every_epochs epochs
   // (and after the last) with the model in eval mode; the metrics it returns are printed with
   // the epoch (the caller logs them). Returns the step logs of this call.
