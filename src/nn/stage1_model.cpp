@@ -622,11 +622,17 @@ Stage1Output Stage1Model::Predict(const ScenePoints& scene, bool with_features,
 }
 
 Stage1Output Stage1Model::PredictAugmented(const ScenePoints& scene, int rotations, bool mirror,
-                                           bool with_features, Stage1Timing* timing) const {
+                                           bool with_features, Stage1Timing* timing,
+                                           double scene_norm) const {
   if (rotations < 1 || kHeadingBins % rotations != 0) {
     throw InvalidArgument("stage1 predict: rotations must divide " + std::to_string(kHeadingBins) +
                           " (1, 2, 3, 4, 6, 12), got " + std::to_string(rotations));
   }
+  if (!(scene_norm >= 0.0 && scene_norm <= 1.0)) {
+    throw InvalidArgument("stage1 predict: scene_norm must be in [0, 1], got " +
+                          std::to_string(scene_norm));
+  }
+  const ScopedSceneNormalisation scene_statistics(scene_norm);
   const auto t_start = std::chrono::steady_clock::now();
   torch::NoGradGuard no_grad;
   impl_->net->eval();

@@ -197,6 +197,12 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 },
                 nullptr,  // Parse checks every value
                 [](const C& c) { return c.colour_norm; }})
+          .Number(
+              "scene_norm", [](C& c) -> double& { return c.scene_norm; }, "",
+              "test-time adaptation: the U-Net's BatchNorm layers normalise with this blend of "
+              "the training statistics (0) and each pass's own (1)",
+              0.0, 1.0)
+          .WrittenIf([](const C& c) { return c.scene_norm != d.scene_norm; })
           .Add({"vote_exclude", "",
                 "RFS classes kept out of the semantic vote (comma-separated names, e.g. "
                 "picture,display), or none",
@@ -398,8 +404,9 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
   const std::vector<Eigen::Vector3f>* colours =
       !uses_color() ? nullptr : (impl_->config.colour_norm ? &standardised : &input.colors);
   const nn::ScenePoints view(input.points, colours, input.name);
-  nn::Stage1Output out = impl_->model->PredictAugmented(view, impl_->config.rotations,
-                                                        impl_->config.mirror, with_features, &t);
+  nn::Stage1Output out =
+      impl_->model->PredictAugmented(view, impl_->config.rotations, impl_->config.mirror,
+                                     with_features, &t, impl_->config.scene_norm);
   total.Stop();
   r.timings.Add("voxelize", t.voxelize_ms);
   r.timings.Add("kernel_maps", t.kernel_map_ms);

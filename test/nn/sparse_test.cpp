@@ -2,6 +2,7 @@
 // torch-ops, finite differences, pooling, voxelisation, U-Net structure, checkpoints.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -719,6 +720,81 @@ TEST(SparseUNet, TranslationByCoarsestStrideIsEquivariant) {
   odd.select(1, 1) += 1;
   at::Tensor c = net->forward(SparseTensor(odd, x, {24, 16, 20}, 1)).features();
   EXPECT_GT(RelErr(a, c), 1e-3);
+}
+
+TEST(SparseUNet, SceneNormalisationBlendsTrainingAndInputStatistics) {
+  at::manual_seed(5);
+  SparseUNet net(SmallConfig());
+  // Running statistics far from any input's, so that using them or not matters.
+  {
+    at::NoGradGuard ng;
+    for (auto& b : net->buffers()) {
+      if (b.is_floating_point() && b.dim() == 1) b.copy_(at::rand_like(b) * 4.0 + 0.5);
+    }
+  }
+  at::Tensor coords = RandomSites(1, {14, 12, 10}, 400, 9);
+  at::Tensor x = at::randn({coords.size(0), 3}) * 2.0 + 1.0;
+  auto run = [&](double w) {
+    at::NoGradGuard ng;
+    const ScopedSceneNormalisation guard(w);
+    return net->forward(SparseTensor(coords, x, {14, 12, 10}, 1)).features().clone();
+  };
+  net->eval();
+  const at::Tensor eval0 = run(0.0);
+  const at::Tensor half = run(0.5);
+  const at::Tensor full = run(1.0);
+  at::Tensor plain;
+  {
+    at::NoGradGuard ng;
+    plain = net->forward(SparseTensor(coords, x, {14, 12, 10}, 1)).features().clone();
+  }
+  EXPECT_EQ(ScopedSceneNormalisation::Current(), 0.0);  // every guard ended
+  EXPECT_TRUE(at::equal(eval0, plain));                  // w = 0 is eval mode
+  // w = 1 is training-mode BatchNorm (batch statistics, biased variance, layer after layer),
+  // computed on a copy so that the running statistics of `net` are not moved.
+  SparseUNet train_copy(SmallConfig());
+  {
+    at::NoGradGuard ng;
+    auto src = net->named_parameters();
+    for (auto& p : train_copy->named_parameters()) p.value().copy_(src[p.key()]);
+    auto srcb = net->named_buffers();
+    for (auto& b : train_copy->named_buffers()) b.value().copy_(srcb[b.key()]);
+  }
+  train_copy->train();
+  at::Tensor batch_stats;
+  {
+    at::NoGradGuard ng;
+    batch_stats = train_copy->forward(SparseTensor(coords, x, {14, 12, 10}, 1)).features();
+  }
+  EXPECT_LT(RelErr(full, batch_stats), 1e-4);
+  EXPECT_GT(RelErr(full, eval0), 0.1);
+  // The blend lies strictly between the two and is neither.
+  EXPECT_GT(RelErr(half, eval0), 1e-3);
+  EXPECT_GT(RelErr(half, full), 1e-3);
+  // The weights and running statistics are untouched: eval mode gives the same numbers again.
+  EXPECT_TRUE(at::equal(run(0.0), eval0));
+  // Nesting: the inner weight wins, the outer one comes back.
+  {
+    const ScopedSceneNormalisation outer(0.25);
+    {
+      const ScopedSceneNormalisation inner(1.0);
+      EXPECT_EQ(ScopedSceneNormalisation::Current(), 1.0);
+    }
+    EXPECT_EQ(ScopedSceneNormalisation::Current(), 0.25);
+  }
+  EXPECT_THROW(ScopedSceneNormalisation(1.5), InvalidArgument);
+  EXPECT_THROW(ScopedSceneNormalisation(-0.1), InvalidArgument);
+  EXPECT_THROW(ScopedSceneNormalisation(std::nan("")), InvalidArgument);
+  // One active site: no statistics to take (a layer with < 2 rows keeps its running ones).
+  at::Tensor one = coords.slice(0, 0, 1);
+  at::NoGradGuard ng;
+  at::Tensor single_eval = net->forward(SparseTensor(one, x.slice(0, 0, 1), {14, 12, 10}, 1))
+                               .features()
+                               .clone();
+  const ScopedSceneNormalisation guard(1.0);
+  at::Tensor single_adapted =
+      net->forward(SparseTensor(one, x.slice(0, 0, 1), {14, 12, 10}, 1)).features();
+  EXPECT_TRUE(at::equal(single_eval, single_adapted));
 }
 
 // ---------------------------------------------------------------------------------------

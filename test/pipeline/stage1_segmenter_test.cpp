@@ -65,6 +65,7 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
       {"passes=", "'passes='"},
       {"class_bias=0.1,0.2", "2 values, expected 25"},
       {"vote_exclude=sofa2", "'sofa2' is not an RFS class name"},
+      {"scene_norm=1.5", "'scene_norm=1.5'"},
       {"spin=3", "'spin=3': unknown key"},
       {"rotations", "not key=value"}};
   for (const auto& [text, expect] : bad) {
@@ -72,6 +73,11 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
     EXPECT_NE(e.find(expect), std::string::npos) << text << " -> " << e;
     EXPECT_NE(e.find("stage1 inference"), std::string::npos) << e;
   }
+  c = Stage1InferenceConfig::FromString("rotations=2 scene_norm=0.5");
+  EXPECT_DOUBLE_EQ(c.scene_norm, 0.5);
+  EXPECT_NE(c.ToString().find("scene_norm=0.5"), std::string::npos) << c.ToString();
+  EXPECT_EQ(Stage1InferenceConfig::FromString("rotations=2").ToString().find("scene_norm"),
+            std::string::npos);  // 0 (off) is not written
   Stage1InferenceConfig v;
   v.min_points = -1;
   EXPECT_NE(ErrorOf([&] { v.Validate(); }).find("min_points = -1"), std::string::npos);
@@ -294,6 +300,36 @@ TEST(Stage1Segmenter, TestTimeAugmentationAveragesThePasses) {
   for (int k = 0; k < 25; ++k) row += four.semantic_prob[k];
   EXPECT_GT(diff, 1e-4);  // the passes differ, so the average is not the plain pass
   EXPECT_NEAR(row, 1.0, 1e-4);
+}
+
+// scene_norm reaches the network: the blend moves the probabilities, 0 gives the plain
+// numbers again, and the shipped model's own training statistics are not altered by a run.
+TEST(Stage1Segmenter, SceneNormalisationAdaptsThePassesToTheScene) {
+  Stage1InferenceConfig cfg;
+  const PointCloudInput room = Room(3.5f, 3.0f, 2.4f, 3000, 2);
+  const Stage1Segmenter seg = Stage1Segmenter::Load(kModel, cfg);
+  const Stage1Result plain = seg.Segment(room);
+  Stage1InferenceConfig adapted_cfg = cfg;
+  adapted_cfg.scene_norm = 1.0;
+  Stage1Segmenter adapted = Stage1Segmenter::Load(kModel, adapted_cfg);
+  const Stage1Result full = adapted.Segment(room);
+  adapted_cfg.scene_norm = 0.3;
+  adapted.set_config(adapted_cfg);
+  const Stage1Result part = adapted.Segment(room);
+  adapted_cfg.scene_norm = 0.0;
+  adapted.set_config(adapted_cfg);
+  const Stage1Result again = adapted.Segment(room);
+  ASSERT_EQ(plain.semantic_prob.size(), full.semantic_prob.size());
+  double d_full = 0, d_part = 0, d_again = 0;
+  for (std::size_t k = 0; k < plain.semantic_prob.size(); ++k) {
+    d_full = std::max<double>(d_full, std::abs(plain.semantic_prob[k] - full.semantic_prob[k]));
+    d_part = std::max<double>(d_part, std::abs(plain.semantic_prob[k] - part.semantic_prob[k]));
+    d_again = std::max<double>(d_again, std::abs(plain.semantic_prob[k] - again.semantic_prob[k]));
+  }
+  EXPECT_GT(d_full, 1e-3);
+  EXPECT_GT(d_part, 1e-4);
+  EXPECT_LT(d_part, d_full);
+  EXPECT_EQ(d_again, 0.0);
 }
 
 TEST(Stage1Segmenter, BadCloudsGiveAResultOrAClearError) {

@@ -26,6 +26,28 @@ namespace dimr::nn {
 // BatchNorm1d over active-site rows, eps 1e-4, momentum 0.1 (reference).
 torch::nn::BatchNorm1d MakeSparseBatchNorm(int64_t channels);
 
+// Test-time normalisation with the input's own statistics (AdaBN; Schneider et al. 2020,
+// "covariate shift adaptation"). While a guard is alive on this thread, every BatchNorm of a
+// sparse U-Net in eval mode normalises its rows with
+//   mean = (1 - w) running_mean + w mean(rows),  var = (1 - w) running_var + w var(rows)
+// (biased variance over the active sites of the whole input), each layer on the output of the
+// layers before it as they were normalised with the blend; w = 0 is plain eval mode, w = 1
+// uses only the input's statistics. A layer with fewer than 2 rows keeps its running
+// statistics. Training mode and the weights are not touched: the statistics are computed per
+// forward, so nothing has to be restored and other threads are unaffected. Guards nest (the
+// inner weight wins until it ends). Throws dimr::InvalidArgument for w outside [0, 1].
+class ScopedSceneNormalisation {
+ public:
+  explicit ScopedSceneNormalisation(double weight);
+  ~ScopedSceneNormalisation();
+  ScopedSceneNormalisation(const ScopedSceneNormalisation&) = delete;
+  ScopedSceneNormalisation& operator=(const ScopedSceneNormalisation&) = delete;
+  static double Current();  // this thread's weight (0 without a guard)
+
+ private:
+  double previous_;
+};
+
 // A convolution weight [k, k, k, Cin, Cout] (kaiming-uniform init, fan-in k^3 * Cin).
 class SparseConvWeightImpl : public torch::nn::Module {
  public:

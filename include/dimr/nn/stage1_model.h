@@ -261,8 +261,13 @@ class Stage1Model {
   // dimr::InvalidArgument naming the scene (MakeStage1NetworkInput) and for a bad rotations.
   Stage1Output Predict(const ScenePoints& scene, bool with_features = false,
                        Stage1Timing* timing = nullptr) const;
+  // `scene_norm` in [0, 1]: every pass normalises the U-Net's BatchNorm layers with that blend
+  // of the training statistics and the pass's own (test-time adaptation to a scene unlike the
+  // training rooms: nn::ScopedSceneNormalisation in sparse_unet.h; 0 = the training statistics
+  // alone). The heads keep their training statistics.
   Stage1Output PredictAugmented(const ScenePoints& scene, int rotations, bool mirror,
-                                bool with_features = false, Stage1Timing* timing = nullptr) const;
+                                bool with_features = false, Stage1Timing* timing = nullptr,
+                                double scene_norm = 0.0) const;
 
  private:
   struct Impl;

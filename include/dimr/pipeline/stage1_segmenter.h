@@ -72,6 +72,10 @@ struct Stage1InferenceConfig {
   // "colour_norm=<12 values>", `dimr stage1 colour-stats`); off when colour_norm is false.
   bool colour_norm = false;
   ColourRange colour_range;
+  // Test-time adaptation of the U-Net's normalisation to the scene (text "scene_norm=w", w in
+  // [0, 1]): every network pass normalises with (1 - w) x the training statistics + w x its
+  // own (nn::ScopedSceneNormalisation); 0 = the training statistics alone.
+  double scene_norm = 0;
   // Multi-scale clustering passes (default: the reference's o0.03,s0.01,s0.03,s0.05), the
   // smallest cluster, point-IoU NMS threshold and the smallest proposal kept (> min_points).
   std::vector<ClusterPass> passes = ClusteringConfig().passes;
