@@ -1106,7 +1106,7 @@ void CadSizeRange(int cad_class, geometry::Vec3* min_size, geometry::Vec3* max_s
       {0.35, 0.35, 0.3, 1.3, 2.4, 0.85},   // table (incl. coffee tables and desks)
       {0.35, 0.35, 0.4, 1.0, 1.0, 1.3},    // chair (incl. stools, armchairs)
       {0.2, 0.4, 0.7, 0.6, 2.2, 2.3},      // bookshelf
-      {0.6, 0.7, 0.55, 2.0, 3.2, 1.1},     // sofa
+      {0.6, 1.0, 0.55, 2.0, 3.2, 1.1},     // sofa (>= 2 seats: narrower is an armchair)
       {0.18, 0.18, 0.2, 0.6, 0.6, 0.9},    // trash bin
       {0.3, 0.3, 0.4, 0.9, 2.2, 2.1},      // cabinet
       {0.03, 0.25, 0.2, 0.4, 1.8, 1.1},    // display

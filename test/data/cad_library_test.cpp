@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -15,6 +16,7 @@
 #include <vector>
 
 #include "dimr/data/labels.h"
+#include "dimr/data/room.h"
 #include "dimr/geometry/error.h"
 
 namespace dimr::data {
@@ -313,6 +315,18 @@ TEST(CadLibrary, RealisticNominalSizes) {
       EXPECT_LE(m.nominal_size.z(), range.second) << CadClassNames()[c] << " " << m.family;
     }
   }
+  // Width (y): a sofa seats two or more (>= 1.0 m); one seat wide is the chair family's
+  // armchair (ScanNet's label for it), and chairs stay within the chair size range.
+  double narrowest_sofa = 1e9, widest_chair = 0;
+  for (std::uint64_t s = 0; s < 200; ++s) {
+    narrowest_sofa = std::min(narrowest_sofa, GenerateCadModel(kCadSofa, s).nominal_size.y());
+    widest_chair = std::max(widest_chair, GenerateCadModel(kCadChair, s).nominal_size.y());
+  }
+  EXPECT_GE(narrowest_sofa, 1.0);
+  EXPECT_LE(widest_chair, 1.0);
+  Vec3 lo, hi;
+  CadSizeRange(kCadSofa, &lo, &hi);
+  EXPECT_GE(lo.y(), 1.0);
 }
 
 TEST(CadLibrary, ChairAndSofaBacksAtMinusX) {

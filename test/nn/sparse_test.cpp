@@ -749,7 +749,7 @@ TEST(SparseUNet, SceneNormalisationBlendsTrainingAndInputStatistics) {
     plain = net->forward(SparseTensor(coords, x, {14, 12, 10}, 1)).features().clone();
   }
   EXPECT_EQ(ScopedSceneNormalisation::Current(), 0.0);  // every guard ended
-  EXPECT_TRUE(at::equal(eval0, plain));                  // w = 0 is eval mode
+  EXPECT_TRUE(at::equal(eval0, plain));                 // w = 0 is eval mode
   // w = 1 is training-mode BatchNorm (batch statistics, biased variance, layer after layer),
   // computed on a copy so that the running statistics of `net` are not moved.
   SparseUNet train_copy(SmallConfig());
@@ -788,9 +788,8 @@ TEST(SparseUNet, SceneNormalisationBlendsTrainingAndInputStatistics) {
   // One active site: no statistics to take (a layer with < 2 rows keeps its running ones).
   at::Tensor one = coords.slice(0, 0, 1);
   at::NoGradGuard ng;
-  at::Tensor single_eval = net->forward(SparseTensor(one, x.slice(0, 0, 1), {14, 12, 10}, 1))
-                               .features()
-                               .clone();
+  at::Tensor single_eval =
+      net->forward(SparseTensor(one, x.slice(0, 0, 1), {14, 12, 10}, 1)).features().clone();
   const ScopedSceneNormalisation guard(1.0);
   at::Tensor single_adapted =
       net->forward(SparseTensor(one, x.slice(0, 0, 1), {14, 12, 10}, 1)).features();
