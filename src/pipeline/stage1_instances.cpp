@@ -176,6 +176,40 @@ void SemanticVoteConfig::Validate() const {
                             " is negative");
     }
   }
+  for (std::size_t c = 0; c < min_extent.size(); ++c) {
+    if (!(std::isfinite(min_extent[c]) && min_extent[c] >= 0.0)) {
+      throw InvalidArgument("SemanticVoteConfig.min_extent: class " + std::to_string(c) +
+                            " must be finite and >= 0, got " + std::to_string(min_extent[c]));
+    }
+  }
+}
+
+double FootprintLongSide(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& idx) {
+  if (idx.size() < 2) return 0.0;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  for (int i : idx) mean += points[i].head<2>().cast<double>();
+  mean /= static_cast<double>(idx.size());
+  double cxx = 0, cxy = 0, cyy = 0;
+  for (int i : idx) {
+    const Eigen::Vector2d d = points[i].head<2>().cast<double>() - mean;
+    cxx += d.x() * d.x();
+    cxy += d.x() * d.y();
+    cyy += d.y() * d.y();
+  }
+  // Principal axis of the 2 x 2 covariance.
+  const double angle = 0.5 * std::atan2(2.0 * cxy, cxx - cyy);
+  const Eigen::Vector2d axis(std::cos(angle), std::sin(angle));
+  std::vector<double> t;
+  t.reserve(idx.size());
+  for (int i : idx) t.push_back(axis.dot(points[i].head<2>().cast<double>() - mean));
+  const auto at = [&t](double q) {
+    const std::size_t k = static_cast<std::size_t>(std::lround(q * (t.size() - 1)));
+    std::nth_element(t.begin(), t.begin() + k, t.end());
+    return t[k];
+  };
+  const double lo = at(0.02);
+  const double hi = at(0.98);
+  return hi - lo;
 }
 
 std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
@@ -205,6 +239,11 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
                             " is not in [0, " + std::to_string(num_classes) + ")");
     }
     votes[c] = false;
+  }
+  if (!config.min_extent.empty() && config.min_extent.size() != num_classes) {
+    throw InvalidArgument("VoteSemantics: min_extent has " +
+                          std::to_string(config.min_extent.size()) + " values, expected " +
+                          std::to_string(num_classes) + " (one per class) or none");
   }
   std::vector<int> thing_label(n, -1);
   std::vector<Eigen::Vector3f> shifted(n);
@@ -237,7 +276,17 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
         if (votes[c]) sum[c] += row[c];
       }
     }
-    const int best = static_cast<int>(std::max_element(sum.begin(), sum.end()) - sum.begin());
+    int best = static_cast<int>(std::max_element(sum.begin(), sum.end()) - sum.begin());
+    if (!config.min_extent.empty() && config.min_extent[best] > 0.0) {
+      // Too small for the winner: the best class the footprint allows (the winner if none).
+      const double side = FootprintLongSide(points, cluster);
+      int allowed = -1;
+      for (std::size_t c = 0; c < num_classes; ++c) {
+        if (!votes[c] || config.min_extent[c] > side) continue;
+        if (allowed < 0 || sum[c] > sum[allowed]) allowed = static_cast<int>(c);
+      }
+      if (config.min_extent[best] > side && allowed >= 0) best = allowed;
+    }
     for (int i : cluster) out[i] = best;
   }
   return out;

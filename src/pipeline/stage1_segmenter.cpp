@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <stdexcept>
+#include <string>
 #include <utility>
 
 #include "dimr/core/labels.h"
@@ -50,6 +52,47 @@ std::string RfsClassListToString(const std::vector<int>& classes) {
   for (int c : classes) {
     r += (r.empty() ? "" : ",") +
          (c >= 0 && c < static_cast<int>(names.size()) ? names[c] : std::to_string(c));
+  }
+  return r;
+}
+
+std::vector<double> ParseRfsClassValues(const std::string& text) {
+  const auto& names = Stage1RfsClassNames();
+  const std::vector<std::string> items = config::SplitList(text, /*none_is_empty=*/true);
+  if (items.empty()) return {};
+  std::vector<double> r(names.size(), 0.0);
+  for (const std::string& item : items) {
+    const std::size_t colon = item.find(':');
+    if (colon == std::string::npos) {
+      throw InvalidArgument("'" + item + "' is not CLASS:VALUE (e.g. sofa:0.8)");
+    }
+    const std::string name = item.substr(0, colon);
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) throw InvalidArgument("'" + name + "' is not an RFS class name");
+    const std::string number = item.substr(colon + 1);
+    double v = 0;
+    std::size_t used = 0;
+    try {
+      v = std::stod(number, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (used == 0 || used != number.size() || !std::isfinite(v) || v < 0) {
+      throw InvalidArgument("'" + item + "': the value must be a finite number >= 0");
+    }
+    r[it - names.begin()] = v;
+  }
+  return r;
+}
+
+std::string RfsClassValuesToString(const std::vector<double>& values) {
+  const auto& names = Stage1RfsClassNames();
+  std::string r;
+  for (std::size_t c = 0; c < values.size(); ++c) {
+    if (values[c] == 0.0) continue;
+    char num[32];
+    std::snprintf(num, sizeof(num), "%g", values[c]);
+    r += (r.empty() ? "" : ",") + (c < names.size() ? names[c] : std::to_string(c)) + ":" + num;
   }
   return r;
 }
@@ -222,6 +265,30 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                   return "";
                 },
                 [](const C& c) { return !c.vote_exclude.empty(); }})
+          .Add({"vote_min_extent", "m",
+                "size plausibility in the semantic vote: a cluster whose footprint long side is "
+                "below CLASS's value cannot take CLASS (comma-separated CLASS:metres, e.g. "
+                "sofa:0.8), or none",
+                false, [](const C& c) { return RfsClassValuesToString(c.vote_min_extent); },
+                [](C& c, const std::string& v) -> std::string {
+                  try {
+                    c.vote_min_extent = ParseRfsClassValues(v);
+                  } catch (const InvalidArgument& e) {
+                    return e.what();
+                  }
+                  return "";
+                },
+                [](const C& c) -> std::string {
+                  if (!c.vote_min_extent.empty() &&
+                      c.vote_min_extent.size() != static_cast<std::size_t>(kStage1RfsClasses)) {
+                    return "needs 25 values or none";
+                  }
+                  for (double v : c.vote_min_extent) {
+                    if (!std::isfinite(v) || v < 0) return "a value is not a finite number >= 0";
+                  }
+                  return "";
+                },
+                [](const C& c) { return !c.vote_min_extent.empty(); }})
           .Number(
               "cluster_min_points", [](C& c) -> int& { return c.cluster_min_points; }, "points",
               "smallest cluster a pass keeps", 1, 1000000000)
@@ -310,6 +377,7 @@ Stage1InstanceConfig Stage1InferenceConfig::InstanceConfig() const {
   cfg.semantic_vote.radius = vote_radius;
   cfg.semantic_vote.min_points = vote_min_points;
   cfg.semantic_vote.excluded_classes = vote_exclude;
+  cfg.semantic_vote.min_extent = vote_min_extent;
   cfg.class_bias = class_bias;
   return cfg;
 }

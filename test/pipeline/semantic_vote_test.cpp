@@ -2,6 +2,7 @@
 // space, majority by summed probability, stuff points and small clusters untouched, errors.
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 #include <string>
 #include <vector>
@@ -89,6 +90,86 @@ TEST(VoteSemantics, ClustersTakeTheClassWithTheLargestSummedProbability) {
   EXPECT_THROW(VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, cfg),
                InvalidArgument);
   cfg.excluded_classes = {-1};
+  EXPECT_THROW(cfg.Validate(), InvalidArgument);
+}
+
+// A rectangle of points on the floor plane, rotated by `angle`: side x side_y metres, n x n grid.
+std::vector<Eigen::Vector3f> Footprint(double side_x, double side_y, double angle, int n) {
+  std::vector<Eigen::Vector3f> p;
+  const double c = std::cos(angle), s = std::sin(angle);
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const double x = side_x * (i / (n - 1.0) - 0.5), y = side_y * (j / (n - 1.0) - 0.5);
+      p.emplace_back(static_cast<float>(c * x - s * y + 3.0), static_cast<float>(s * x + c * y),
+                     static_cast<float>(0.1 * ((i + j) % 5)));
+    }
+  }
+  return p;
+}
+
+TEST(VoteSemantics, FootprintLongSideIsThePrincipalExtent) {
+  // 51 x 51 grid: the 2nd-98th percentile range of a uniform grid of side L is 0.96 L.
+  for (double angle : {0.0, 0.4, 1.3, -2.2}) {
+    const auto p = Footprint(1.5, 0.5, angle, 51);
+    std::vector<int> idx(p.size());
+    for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+    EXPECT_NEAR(FootprintLongSide(p, idx), 0.96 * 1.5, 0.01) << angle;
+    const auto q = Footprint(0.4, 0.6, angle, 51);
+    EXPECT_NEAR(FootprintLongSide(q, idx), 0.96 * 0.6, 0.01) << angle;
+  }
+  // An outlier does not stretch it (percentiles), a single point has none.
+  auto p = Footprint(0.5, 0.5, 0.0, 21);
+  p.emplace_back(13.0f, 0.0f, 0.0f);
+  std::vector<int> idx(p.size());
+  for (std::size_t i = 0; i < idx.size(); ++i) idx[i] = static_cast<int>(i);
+  EXPECT_LT(FootprintLongSide(p, idx), 0.75);
+  EXPECT_EQ(FootprintLongSide(p, {3}), 0.0);
+}
+
+TEST(VoteSemantics, ClustersTooSmallForTheirClassTakeTheBestClassTheyCan) {
+  // Two objects whose points lean to class 2 ("sofa") over class 1 ("chair"): a 0.6 m one and
+  // a 1.6 m one. With min_extent 0.8 m for class 2 the small one becomes class 1, the large one
+  // stays class 2; class 3 (no limit, smallest sum) never wins.
+  Scene s;
+  const Eigen::Vector3f small_centre(3, 0, 0.4f), large_centre(8, 0, 0.4f);
+  for (const auto& p : Footprint(0.6, 0.55, 0.3, 8)) {
+    s.Add(p, small_centre, {0.0f, 0.3f, 0.6f, 0.1f});
+  }
+  const std::size_t n_small = s.points.size();
+  for (auto p : Footprint(1.6, 0.8, -0.7, 8)) {
+    p.x() += 5.0f;
+    s.Add(p, large_centre, {0.0f, 0.3f, 0.6f, 0.1f});
+  }
+  SemanticVoteConfig cfg;
+  cfg.radius = 0.1;
+  cfg.min_points = 3;
+  auto run = [&](const SemanticVoteConfig& c) {
+    return VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, c);
+  };
+  const std::vector<int> plain = run(cfg);
+  for (std::size_t i = 0; i < s.points.size(); ++i) EXPECT_EQ(plain[i], 2) << i;
+  cfg.min_extent = {0.0, 0.0, 0.8, 0.0};
+  const std::vector<int> gated = run(cfg);
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    EXPECT_EQ(gated[i], i < n_small ? 1 : 2) << i;
+  }
+  // When no class fits, the winner stays.
+  cfg.min_extent = {0.0, 5.0, 5.0, 5.0};
+  EXPECT_EQ(run(cfg), plain);
+  // An excluded class is never the fallback: class 1 out of the vote -> class 3.
+  cfg.min_extent = {0.0, 0.0, 0.8, 0.0};
+  cfg.excluded_classes = {1};
+  const std::vector<int> excl = run(cfg);
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    EXPECT_EQ(excl[i], i < n_small ? 3 : 2) << i;
+  }
+  // Wrong length and bad values are errors.
+  cfg.excluded_classes.clear();
+  cfg.min_extent = {0.0, 0.8};
+  EXPECT_THROW(run(cfg), InvalidArgument);
+  cfg.min_extent = {0.0, 0.0, -0.8, 0.0};
+  EXPECT_THROW(cfg.Validate(), InvalidArgument);
+  cfg.min_extent = {0.0, 0.0, std::numeric_limits<double>::infinity(), 0.0};
   EXPECT_THROW(cfg.Validate(), InvalidArgument);
 }
 

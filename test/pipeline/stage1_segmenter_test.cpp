@@ -66,6 +66,10 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
       {"class_bias=0.1,0.2", "2 values, expected 25"},
       {"vote_exclude=sofa2", "'sofa2' is not an RFS class name"},
       {"scene_norm=1.5", "'scene_norm=1.5'"},
+      {"vote_min_extent=sofa", "not CLASS:VALUE"},
+      {"vote_min_extent=sofas:0.8", "'sofas' is not an RFS class name"},
+      {"vote_min_extent=sofa:-1", "finite number >= 0"},
+      {"vote_min_extent=sofa:0.8m", "finite number >= 0"},
       {"spin=3", "'spin=3': unknown key"},
       {"rotations", "not key=value"}};
   for (const auto& [text, expect] : bad) {
@@ -73,6 +77,16 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
     EXPECT_NE(e.find(expect), std::string::npos) << text << " -> " << e;
     EXPECT_NE(e.find("stage1 inference"), std::string::npos) << e;
   }
+  // Size plausibility: CLASS:metres per class, 25 values, round trip, into the vote config.
+  c = Stage1InferenceConfig::FromString("vote_radius=0.065 vote_min_extent=bathtub:0.95,sofa:0.8");
+  ASSERT_EQ(c.vote_min_extent.size(), 25u);
+  EXPECT_DOUBLE_EQ(c.vote_min_extent[5], 0.8);    // sofa
+  EXPECT_DOUBLE_EQ(c.vote_min_extent[18], 0.95);  // bathtub
+  EXPECT_DOUBLE_EQ(c.vote_min_extent[4], 0.0);    // chair: no limit
+  EXPECT_NE(c.ToString().find("vote_min_extent=sofa:0.8,bathtub:0.95"), std::string::npos)
+      << c.ToString();
+  EXPECT_EQ(c.InstanceConfig().semantic_vote.min_extent, c.vote_min_extent);
+  EXPECT_TRUE(Stage1InferenceConfig::FromString("vote_min_extent=none").vote_min_extent.empty());
   c = Stage1InferenceConfig::FromString("rotations=2 scene_norm=0.5");
   EXPECT_DOUBLE_EQ(c.scene_norm, 0.5);
   EXPECT_NE(c.ToString().find("scene_norm=0.5"), std::string::npos) << c.ToString();

@@ -20,11 +20,18 @@ struct SemanticVoteConfig {
   // cluster is given them (e.g. small wall-mounted or table-top objects whose clusters merge
   // with their larger neighbours).
   std::vector<int> excluded_classes;
+  // Size plausibility of the voted class: a cluster whose footprint is shorter than
+  // min_extent[c] metres cannot take class c and takes the best class it can (e.g. a
+  // chair-sized cluster whose points lean to `sofa`: sofas have two seats or more, a one-seat
+  // "sofa" is an armchair, which ScanNet labels chair). The footprint is the long side of the
+  // cluster's original (unshifted) points on the floor plane: 2nd to 98th percentile along
+  // their principal horizontal axis. Empty = no limits; else one value per class, 0 = none.
+  std::vector<double> min_extent;
   // The reference's neighbour cap in the vote's BFS (false: RadiusComponents, as
   // ClusteringConfig::neighbour_cap).
   bool neighbour_cap = true;
   // Throws dimr::InvalidArgument naming the bad field (radius negative or not finite,
-  // min_points < 1, a negative excluded class).
+  // min_points < 1, a negative excluded class, a negative or non-finite min_extent).
   void Validate() const;
 };
 
@@ -82,11 +89,16 @@ std::vector<ScoredInstance> ScoredStage1Proposals(
 
 namespace dimr::pipeline {
 
+// Footprint long side of the points `idx` (metres): the 2nd-98th percentile range of their x-y
+// coordinates along the principal axis of their x-y covariance; 0 for fewer than 2 points.
+double FootprintLongSide(const std::vector<Eigen::Vector3f>& points, const std::vector<int>& idx);
+
 // Instance-guided semantic refinement: the points whose argmax class is a "thing" class
 // (is_thing[c], e.g. everything but wall and floor, less config.excluded_classes) are
 // clustered class-agnostically by BFS on
 // points + offsets with `config.radius`; every cluster of >= min_points points takes the
-// class with the largest summed probability over its points (thing classes only) and all its
+// class with the largest summed probability over its points (thing classes only, less those
+// whose config.min_extent exceeds the cluster's footprint, see SemanticVoteConfig) and all its
 // points get that class. Stuff points and small clusters keep their labels. semantic: N argmax
 // classes in [0, C); semantic_prob: R x C row-major, point i's row point_row[i] (or i when
 // point_row is empty, R = N); is_thing: C flags. Returns the refined

@@ -44,6 +44,11 @@ const std::vector<int>& Stage1RfsToCad();
 // dimr::InvalidArgument naming an unknown name.
 std::vector<int> ParseRfsClassList(const std::string& text);
 std::string RfsClassListToString(const std::vector<int>& classes);  // "" for none
+// "sofa:0.8,bathtub:0.95" <-> 25 values per RFS class (0 where not named), or empty for ""
+// and "none". Throws dimr::InvalidArgument naming an unknown class, a missing ':' or a value
+// that is not a finite number >= 0.
+std::vector<double> ParseRfsClassValues(const std::string& text);
+std::string RfsClassValuesToString(const std::vector<double>& values);  // "" for none
 
 // fast: one network pass (no test-time augmentation), the rest as the card recommends;
 // accurate: the model card's recommended_inference as it is.
@@ -67,6 +72,10 @@ struct Stage1InferenceConfig {
   double vote_radius = 0;
   int vote_min_points = 20;
   std::vector<int> vote_exclude;
+  // Size plausibility in the vote (SemanticVoteConfig::min_extent): a cluster whose footprint
+  // long side is below the value of a class cannot take it (text
+  // "vote_min_extent=sofa:0.8"); empty = none, else 25 values.
+  std::vector<double> vote_min_extent;
   // Per-scene colour standardisation (colour_norm.h): a scene whose colour mean / spread lie
   // outside the training rooms' range is mapped to the nearest in-range statistics (text
   // "colour_norm=<12 values>", `dimr stage1 colour-stats`); off when colour_norm is false.
