@@ -183,4 +183,39 @@ std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_po
   return out;
 }
 
+geometry::TriangleMesh AlignedCadMesh(const geometry::TriangleMesh& cad,
+                                      const Eigen::Matrix4d& model_to_scan) {
+  if (!model_to_scan.allFinite()) {
+    throw InvalidArgument("AlignedCadMesh: the model-to-scan matrix is not finite");
+  }
+  geometry::TriangleMesh out;
+  out.faces = cad.faces;
+  out.vertex_colors = cad.vertex_colors;
+  out.vertices.reserve(cad.vertices.size());
+  const Eigen::Matrix3d m = model_to_scan.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = model_to_scan.topRightCorner<3, 1>();
+  for (const auto& q : cad.vertices) out.vertices.push_back(m * q + t);
+  return out;
+}
+
+std::vector<int> InstanceLabelsFromSets(std::size_t num_points,
+                                        const std::vector<std::vector<int>>& sets) {
+  if (sets.size() > 65535) {
+    throw InvalidArgument("InstanceLabelsFromSets: " + std::to_string(sets.size()) +
+                          " objects, at most 65535 fit a 16-bit instance label");
+  }
+  std::vector<int> label(num_points, 0);
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    for (int i : sets[k]) {
+      if (i < 0 || static_cast<std::size_t>(i) >= num_points) {
+        throw InvalidArgument("InstanceLabelsFromSets: object " + std::to_string(k) +
+                              " has point " + std::to_string(i) + ", outside [0, " +
+                              std::to_string(num_points) + ")");
+      }
+      if (label[i] == 0) label[i] = static_cast<int>(k) + 1;
+    }
+  }
+  return label;
+}
+
 }  // namespace dimr::eval

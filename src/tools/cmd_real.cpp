@@ -20,6 +20,8 @@
 #include "dimr/data/shapenet_io.h"
 #include "dimr/eval/mesh_metrics.h"
 #include "dimr/eval/real_eval.h"
+#include "dimr/geometry/obj_io.h"
+#include "dimr/geometry/ply_io.h"
 #include "dimr/pipeline/bsp_data.h"
 #include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
@@ -91,6 +93,65 @@ geometry::Vec3 ClassColour(int c) {
   return c < 0 ? geometry::Vec3(0.82, 0.82, 0.82) : PaletteColour(c);
 }
 
+// ---------------------------------------------------------------- Scan2CAD objects
+// The aligned CAD models of a scene's Scan2CAD entry (CAD classes only, annotation order): the
+// scan points inside each box (less those whose RFS label is in `box_exclude`), class, id,
+// model-to-scan map and box.
+struct Scan2CadObjects {
+  std::vector<std::vector<int>> points;
+  std::vector<int> cad_class;
+  std::vector<std::string> id_cad, catid_cad;
+  std::vector<Eigen::Matrix4d> to_scan;
+  std::vector<geometry::OrientedBox> boxes;
+  std::string excluded;  // the excluded class names, comma-separated
+};
+
+Scan2CadObjects ReadScan2CadObjects(const std::string& path, const StatsCloud& c,
+                                    const std::vector<int>& gt25,
+                                    const std::vector<std::string>& box_exclude_names,
+                                    double margin) {
+  Scan2CadObjects o;
+  const std::vector<data::Scan2CadScene> all = data::ReadScan2CadAnnotations(path);
+  const data::Scan2CadScene* scene = nullptr;
+  for (const auto& s : all)
+    if (s.id_scan == c.name) scene = &s;
+  if (!scene && all.size() == 1) scene = &all[0];
+  if (!scene) throw ParseError(path, "no entry with id_scan '" + c.name + "'");
+  const auto names25 = Names(labels::RfsClassNames().data(), labels::kNumRfsClasses);
+  const Eigen::Matrix4d scan_from_world =
+      data::Scan2CadToAlignedScene(Eigen::Matrix4d::Identity(), *scene);
+  std::vector<int> box_exclude;
+  for (const std::string& name : box_exclude_names) {
+    const auto it = std::find(names25.begin(), names25.end(), name);
+    if (it == names25.end()) {
+      throw InvalidArgument("--box-exclude: '" + name + "' is not an RFS class name");
+    }
+    box_exclude.push_back(static_cast<int>(it - names25.begin()));
+    o.excluded += (o.excluded.empty() ? "" : ", ") + name;
+  }
+  for (const auto& m : scene->aligned_models) {
+    const int cls = labels::CadClassFromSynset(m.catid_cad);
+    if (cls < 0) continue;
+    const Eigen::Matrix4d to_scan = eval::Scan2CadModelToScan(*scene, m);
+    o.points.push_back(eval::DropLabelled(eval::PointsInScan2CadBox(c.points, m, to_scan, margin),
+                                          gt25, box_exclude));
+    o.cad_class.push_back(cls);
+    o.boxes.push_back(data::Scan2CadModelBox(m, scan_from_world));
+    o.id_cad.push_back(m.id_cad);
+    o.catid_cad.push_back(m.catid_cad);
+    o.to_scan.push_back(to_scan);
+  }
+  return o;
+}
+
+// RFS 25 labels of a cloud read by ReadStatsCloud (-1 = none).
+std::vector<int> Rfs25Labels(const StatsCloud& c) {
+  std::vector<int> gt25(c.points.size(), -1);
+  for (std::size_t i = 0; i < c.points.size() && i < c.semantic.size(); ++i)
+    if (c.semantic[i] >= 0 && c.semantic[i] < labels::kNumRfsClasses) gt25[i] = c.semantic[i];
+  return gt25;
+}
+
 // ---------------------------------------------------------------- real eval
 struct RealEvalArgs {
   std::string scene, scan2cad, json, render_dir;
@@ -140,9 +201,9 @@ void RunRealEval(const RealEvalArgs& a) {
 
   // Semantic: RFS 25 from NYU40; DODA 11 straight from NYU40; CAD 8 from RFS.
   const int n = static_cast<int>(c.points.size());
-  std::vector<int> gt25(n), gt11(n), pr11(n), gt8(n);
+  const std::vector<int> gt25 = Rfs25Labels(c);
+  std::vector<int> gt11(n), pr11(n), gt8(n);
   for (int i = 0; i < n; ++i) {
-    gt25[i] = c.semantic[i] >= 0 && c.semantic[i] < labels::kNumRfsClasses ? c.semantic[i] : -1;
     gt11[i] = eval::Nyu40ToDoda(c.nyu40[i]);
     pr11[i] = eval::RfsToDoda(r.semantic[i]);
     gt8[i] = gt25[i] >= 0 ? labels::RfsToCad(gt25[i]) : -1;
@@ -179,35 +240,13 @@ void RunRealEval(const RealEvalArgs& a) {
   std::vector<eval::PredictedInstance> preds;
   for (const auto& inst : r.instances) preds.push_back({inst.cad_class, inst.score, inst.points});
   if (!a.scan2cad.empty()) {
-    const auto scenes = data::ReadScan2CadAnnotations(a.scan2cad);
-    const data::Scan2CadScene* ann = nullptr;
-    for (const auto& s : scenes)
-      if (s.id_scan == c.name) ann = &s;
-    if (!ann && scenes.size() == 1) ann = &scenes[0];
-    if (!ann) throw ParseError(a.scan2cad, "no entry with id_scan '" + c.name + "'");
-    const Eigen::Matrix4d scan_from_world =
-        data::Scan2CadToAlignedScene(Eigen::Matrix4d::Identity(), *ann);
-    std::vector<int> box_exclude;
-    std::string excluded;
-    for (const std::string& name : a.box_exclude) {
-      const auto it = std::find(names25.begin(), names25.end(), name);
-      if (it == names25.end()) {
-        throw InvalidArgument("--box-exclude: '" + name + "' is not an RFS class name");
-      }
-      box_exclude.push_back(static_cast<int>(it - names25.begin()));
-      excluded += (excluded.empty() ? "" : ", ") + name;
-    }
-    std::vector<std::string> ids;
-    for (const auto& m : ann->aligned_models) {
-      const int cls = labels::CadClassFromSynset(m.catid_cad);
-      if (cls < 0) continue;
-      const Eigen::Matrix4d to_scan = eval::Scan2CadModelToScan(*ann, m);
-      gt_sets.push_back(eval::DropLabelled(
-          eval::PointsInScan2CadBox(c.points, m, to_scan, a.box_margin), gt25, box_exclude));
-      gt_class.push_back(cls);
-      gt_boxes.push_back(data::Scan2CadModelBox(m, scan_from_world));
-      ids.push_back(m.id_cad);
-    }
+    const Scan2CadObjects objects =
+        ReadScan2CadObjects(a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
+    gt_sets = objects.points;
+    gt_class = objects.cad_class;
+    gt_boxes = objects.boxes;
+    const std::vector<std::string>& ids = objects.id_cad;
+    const std::string& excluded = objects.excluded;
     matches = eval::MatchObjects(gt_sets, gt_class, preds, a.iou);
     int found = 0;
     std::printf(
@@ -447,6 +486,99 @@ void SetupRealBsp(CLI::App& app) {
   app.callback([a]() { RunRealBsp(*a); });
 }
 
+// ---------------------------------------------------------------- real export-gt
+struct RealExportGtArgs {
+  std::string scene, scan2cad, shapenet, out;
+  std::vector<std::string> box_exclude;
+  double box_margin = 0.0;
+};
+
+// Ground truth of a real scene in `dimr eval`'s layout (the layout of `dimr export gt`):
+// OUT/meshes/<scene>_<k>_<class>_1.ply = each Scan2CAD-aligned ShapeNet model in the scan frame
+// (eval::AlignedCadMesh), OUT/points/<scene>.ply = the scan points with RFS semantic labels and
+// 1-based instance labels from the aligned boxes (PCR ground truth), OUT/instances.json.
+void RunRealExportGt(const RealExportGtArgs& a) {
+  const StatsCloud c = ReadStatsCloud(a.scene);
+  const std::vector<int> gt25 = Rfs25Labels(c);
+  if (!a.box_exclude.empty() && c.semantic.empty()) {
+    throw ParseError(a.scene, "--box-exclude needs the scan's labels (labels.ply)");
+  }
+  const Scan2CadObjects o = ReadScan2CadObjects(a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
+  if (o.points.empty()) throw ParseError(a.scan2cad, "no aligned model of a CAD class");
+  const fs::path out(a.out);
+  std::error_code ec;
+  for (const char* sub : {"meshes", "points"}) {
+    fs::create_directories(out / sub, ec);
+    if (!fs::is_directory(out / sub)) {
+      throw Error("cannot create the output folder '" + (out / sub).string() + "'");
+    }
+  }
+  json index = json::array();
+  for (std::size_t k = 0; k < o.points.size(); ++k) {
+    const fs::path obj =
+        fs::path(a.shapenet) / data::ShapeNetRelativePath(o.catid_cad[k], o.id_cad[k]);
+    if (!fs::is_regular_file(obj, ec)) {
+      throw ParseError(obj.string(), "CAD model of Scan2CAD object " + std::to_string(k) + " (" +
+                                         o.id_cad[k] + ") not found");
+    }
+    const geometry::TriangleMesh placed =
+        eval::AlignedCadMesh(geometry::ReadObj(obj.string()), o.to_scan[k]);
+    const std::string cls = labels::CadClassNames()[o.cad_class[k]];
+    const std::string name = c.name + "_" + std::to_string(k) + "_" + cls + "_1.ply";
+    geometry::WritePly((out / "meshes" / name).string(), placed);
+    index.push_back({{"scene", c.name},
+                     {"mesh", "meshes/" + name},
+                     {"class", cls},
+                     {"id_cad", o.id_cad[k]},
+                     {"instance", k + 1},
+                     {"box_points", o.points[k].size()}});
+    std::printf("%s: %s %s, %zu vertices, %zu points in its box\n", name.c_str(), cls.c_str(),
+                o.id_cad[k].c_str(), placed.vertices.size(), o.points[k].size());
+  }
+  const std::vector<int> instance = eval::InstanceLabelsFromSets(c.points.size(), o.points);
+  geometry::PointCloud pts;
+  pts.points = c.points;
+  std::vector<double> sem(c.points.size()), ins(c.points.size());
+  for (std::size_t i = 0; i < c.points.size(); ++i) {
+    // An object's points carry its CAD class (the PCR ground truth reads the class there).
+    const int k = instance[i] - 1;
+    sem[i] = k >= 0 ? labels::CadToRfs(o.cad_class[k]) : (gt25[i] >= 0 ? gt25[i] : 255);
+    ins[i] = instance[i];
+  }
+  pts.SetAttribute("semantic_label", geometry::ScalarType::kUInt8, std::move(sem));
+  pts.SetAttribute("instance_label", geometry::ScalarType::kUInt16, std::move(ins));
+  const std::string points_path = (out / "points" / (c.name + ".ply")).string();
+  geometry::WritePly(points_path, pts);
+  std::ofstream f(out / "instances.json");
+  if (!(f << index.dump(1) << "\n"))
+    throw Error("cannot write " + (out / "instances.json").string());
+  std::printf("%zu objects, %zu points -> %s (meshes/, points/, instances.json)\n", o.points.size(),
+              c.points.size(), a.out.c_str());
+}
+
+void SetupRealExportGt(CLI::App& app) {
+  auto a = std::make_shared<RealExportGtArgs>();
+  app.add_option("--scene", a->scene,
+                 "a ScanNet scene folder (<name>_vh_clean_2.ply [+ .labels.ply]) or a PLY")
+      ->required();
+  app.add_option("--scan2cad", a->scan2cad,
+                 "Scan2CAD annotation (a JSON list; the entry with the scene's id_scan, or the "
+                 "only one)")
+      ->required();
+  app.add_option("--shapenet", a->shapenet,
+                 "the ShapeNet tree of the aligned models (<synset>/<id>/models/"
+                 "model_normalized.obj)")
+      ->required();
+  app.add_option("--out", a->out, "output folder (meshes/, points/, instances.json)")->required();
+  app.add_option("--box-exclude", a->box_exclude,
+                 "drop the scan's points of these RFS classes (e.g. floor wall) from the boxes' "
+                 "point sets (the PCR ground truth)")
+      ->expected(1, -1);
+  app.add_option("--box-margin", a->box_margin,
+                 "grow (or shrink, < 0) the Scan2CAD boxes by this much per side [m]");
+  app.callback([a]() { RunRealExportGt(*a); });
+}
+
 const Registrar kRealEval("real", "eval",
                           "Stage 1 on a real ScanNet scene with labels.ply (NYU40) and an optional "
                           "Scan2CAD alignment: mIoU (RFS 25, DODA 11, CAD 8), objects found",
@@ -455,6 +587,10 @@ const Registrar kRealBsp("real", "bsp",
                          "BSP-CVAE IoU@32^3 and Chamfer distance on the CAD models of a real "
                          "ShapeNet tree",
                          &SetupRealBsp);
+const Registrar kRealExportGt("real", "export-gt",
+                              "Mesh-metric ground truth of a real scene from its Scan2CAD "
+                              "alignment (for dimr reconstruct + dimr eval)",
+                              &SetupRealExportGt);
 
 }  // namespace
 }  // namespace dimr::tools

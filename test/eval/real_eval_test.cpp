@@ -98,6 +98,46 @@ TEST(RealEval, PointsInsideAnAlignedBox) {
   EXPECT_THROW(Scan2CadModelToScan(scene, m), InvalidArgument);
 }
 
+TEST(RealEval, AlignedCadMeshLiesInItsOwnBox) {
+  // The box of PointsInsideAnAlignedBox; a CAD mesh whose 8 vertices are the corners of its
+  // bbox (centre (0, 0.1, 0), half extents (0.5, 0.25, 0.5)) must land on the box's corners in
+  // the scan: inside with a 1 mm margin, outside with -1 cm.
+  data::Scan2CadScene scene;
+  scene.translation = Vec3(10, 0, 0);
+  data::Scan2CadModel m;
+  m.translation = Vec3(11, 1, 0);
+  m.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  m.scale = Vec3(2, 2, 2);
+  m.bbox = Vec3(0.5, 0.25, 0.5);
+  m.center = Vec3(0, 0.1, 0);
+  const Eigen::Matrix4d to_scan = Scan2CadModelToScan(scene, m);
+  geometry::TriangleMesh cad;
+  for (int k = 0; k < 8; ++k) {
+    cad.vertices.push_back(m.center +
+                           Vec3(k & 1 ? 0.5 : -0.5, k & 2 ? 0.25 : -0.25, k & 4 ? 0.5 : -0.5));
+  }
+  cad.faces = {{0, 1, 3}, {0, 3, 2}};
+  const geometry::TriangleMesh placed = AlignedCadMesh(cad, to_scan);
+  ASSERT_EQ(placed.vertices.size(), 8u);
+  EXPECT_EQ(placed.faces, cad.faces);
+  // Corner (+0.5, +0.25, +0.5) of the CAD: x2 scale -> (1, 0.5, 1) + centre offset (0, 0.2, 0)
+  // -> Rz(90): (-0.7, 1, 1) -> + (11, 1, 0) - (10, 0, 0) = (0.3, 2, 1).
+  EXPECT_NEAR((placed.vertices[7] - Vec3(0.3, 2, 1)).norm(), 0.0, 1e-12);
+  EXPECT_EQ(PointsInScan2CadBox(placed.vertices, m, to_scan, 0.001).size(), 8u);
+  EXPECT_TRUE(PointsInScan2CadBox(placed.vertices, m, to_scan, -0.01).empty());
+  Eigen::Matrix4d bad = to_scan;
+  bad(0, 3) = std::nan("");
+  EXPECT_THROW(AlignedCadMesh(cad, bad), InvalidArgument);
+}
+
+TEST(RealEval, InstanceLabelsFromSetsFirstObjectWins) {
+  EXPECT_EQ(InstanceLabelsFromSets(6, {{0, 2}, {2, 3}, {}, {5}}),
+            std::vector<int>({1, 0, 1, 2, 0, 4}));
+  EXPECT_EQ(InstanceLabelsFromSets(2, {}), std::vector<int>({0, 0}));
+  EXPECT_THROW(InstanceLabelsFromSets(3, {{0, 3}}), InvalidArgument);
+  EXPECT_THROW(InstanceLabelsFromSets(3, {{-1}}), InvalidArgument);
+}
+
 TEST(RealEval, PointIouAndObjectMatching) {
   EXPECT_DOUBLE_EQ(PointIoU({1, 2, 3, 4}, {3, 4, 5, 6}), 2.0 / 6.0);
   EXPECT_DOUBLE_EQ(PointIoU({1, 1, 2}, {2, 2}), 0.5);  // duplicates ignored

@@ -53,6 +53,49 @@ TEST(ExportGt, GroundTruthAgainstItselfScoresOneHundred) {
   EXPECT_EQ(row.substr(row.rfind('|', row.size() - 2)), "| 100.00 |") << row;
 }
 
+// `dimr real export-gt` builds the GT of a real scene from its Scan2CAD alignment (raw ShapeNet
+// OBJ mapped by inv(T_scan) T_cad). On a SynthScan room, whose full_annotations.json and
+// ShapeNet tree say the same as its boxes, it must agree with `dimr export gt` (canonical mesh
+// placed in the box): the box GT scored against the Scan2CAD GT gives 100 on every metric.
+TEST(RealExportGt, Scan2CadAlignmentAgreesWithTheBoxPlacement) {
+  const fs::path dir = testing::FreshTempDir("dimr_real_export_gt");
+  const std::string split = (dir / "split").string();
+  auto [rc, out] = testing::RunCli(
+      "synth --scenes 1 --seed 4 --split val --frames-per-scene 20 --quiet --out " + split);
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) =
+      testing::RunCli("export gt --split " + split + " --out " + (dir / "box").string());
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) = testing::RunCli(
+      "real export-gt --scene " + split + "/scans/scene5000_00 --scan2cad " + split +
+      "/full_annotations.json --shapenet " + split + "/shapenet --out " + (dir / "s2c").string());
+  ASSERT_EQ(rc, 0) << out;
+  // The box GT as predictions (reference names need a score).
+  fs::create_directories(dir / "pred");
+  int meshes = 0;
+  for (const auto& e : fs::directory_iterator(dir / "box" / "meshes")) {
+    std::string name = e.path().filename().string();
+    ASSERT_EQ(name.substr(name.size() - 6), "_1.ply") << name;
+    EXPECT_TRUE(fs::exists(dir / "s2c" / "meshes" / name)) << name;
+    fs::copy_file(e.path(), dir / "pred" / (name.substr(0, name.size() - 6) + "_0.9.ply"));
+    ++meshes;
+  }
+  EXPECT_GE(meshes, 3);
+  const std::string s2c = (dir / "s2c").string();
+  std::tie(rc, out) =
+      testing::RunCli("eval --quiet --metrics iou,cd,pcr --pred " + (dir / "pred").string() +
+                      " --gt " + s2c + "/meshes --gt-points " + s2c + "/points");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("| 100.00 | 100.00 | 100.00 | 100.00 |"), std::string::npos) << out;
+  // Bad input: a missing CAD tree names the model.
+  std::tie(rc, out) =
+      testing::RunCli("real export-gt --scene " + split + "/scans/scene5000_00 --scan2cad " +
+                      split + "/full_annotations.json --shapenet " + (dir / "nowhere").string() +
+                      " --out " + (dir / "bad").string());
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("not found"), std::string::npos) << out;
+}
+
 TEST(ExportPoolMeshes, EveryShippedPoolModelGetsItsCadMesh) {
   const fs::path dir = testing::FreshTempDir("dimr_export_pool");
   const std::string pool = std::string(DIMR_SOURCE_DIR) + "/models/bsp/pool.bin";

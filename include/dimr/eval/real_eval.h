@@ -77,6 +77,19 @@ std::vector<int> PointsInScan2CadBox(const std::vector<geometry::Vec3>& points,
 std::vector<int> DropLabelled(const std::vector<int>& idx, const std::vector<int>& label,
                               const std::vector<int>& drop);
 
+// Ground truth of a real scene for the mesh metrics (`dimr eval`, docs/real.md "The product on
+// the real room"): a CAD mesh as Scan2CAD aligns it, every vertex q of the model's
+// model_normalized.obj mapped to model_to_scan * q (faces, normals dropped - recomputed by the
+// consumers - and colours kept). Throws dimr::InvalidArgument for a non-finite matrix.
+geometry::TriangleMesh AlignedCadMesh(const geometry::TriangleMesh& cad,
+                                      const Eigen::Matrix4d& model_to_scan);
+
+// 1-based instance labels of `num_points` points from per-object index sets (object k -> k + 1;
+// a point in several sets belongs to the first; 0 = none). Throws dimr::InvalidArgument for an
+// index outside [0, num_points) or more than 65535 objects.
+std::vector<int> InstanceLabelsFromSets(std::size_t num_points,
+                                        const std::vector<std::vector<int>>& sets);
+
 // |a n b| / |a u b| of two index sets (duplicates ignored); 0 when both are empty.
 double PointIoU(const std::vector<int>& a, const std::vector<int>& b);
 
