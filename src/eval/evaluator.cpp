@@ -196,6 +196,34 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
     if (needed[i]) needed_list.push_back(static_cast<int>(i));
   }
   const std::size_t npred = in.preds.size();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  rep.objects.resize(ngt);
+  for (int g = 0; g < ngt; ++g) {
+    rep.objects[g].scene = in.gt[g].scene;
+    rep.objects[g].name = in.gt[g].name;
+    rep.objects[g].cls = in.gt[g].cls;
+    rep.objects[g].best_iou = rep.objects[g].best_cd = rep.objects[g].best_lfd = nan;
+  }
+  // The best value per GT mesh of one metric's pair table (larger or smaller is better).
+  auto record_best = [&](const PairValues& v, bool larger_is_better, double GtObjectResult::*field,
+                         bool keep_pred) {
+    for (std::size_t i = 0; i < npred; ++i) {
+      if (pred_scene[i] < 0) continue;
+      const auto& gts = gt_of[pred_scene[i]][in.preds[i].cls];
+      for (std::size_t j = 0; j < gts.size() && j < v[i].size(); ++j) {
+        GtObjectResult& o = rep.objects[gts[j]];
+        const double x = v[i][j];
+        const double cur = o.*field;
+        if (std::isnan(cur) || (larger_is_better ? x > cur : x < cur)) {
+          o.*field = x;
+          if (keep_pred) {
+            o.best_iou_pred = static_cast<int>(i);
+            o.best_iou_name = in.preds[i].name;
+          }
+        }
+      }
+    }
+  };
 
   // Runs fn(pred i, gt index) -> value over every (prediction, same-class GT of its scene).
   auto compute_pairs = [&](const char* label, const std::function<double(std::size_t, int)>& fn) {
@@ -257,6 +285,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
     const PairValues v = compute_pairs("iou: pairs", [&](std::size_t i, int g) {
       return geometry::ReferenceMeshIoU(vox[pred_mesh[i]], vox[g], corrected);
     });
+    record_best(v, true, &GtObjectResult::best_iou, true);
     rep.tables.push_back(
         make_table("iou", 0.25, v, PassTest::kGreater, MatchRule::kBestOverall, false));
     rep.tables.push_back(
@@ -285,6 +314,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
       const PairValues v = compute_pairs("cd: pairs", [&](std::size_t i, int g) {
         return ChamferDistance(trees[pred_mesh[i]], trees[g]);
       });
+      record_best(v, false, &GtObjectResult::best_cd, false);
       for (double tau : taus) {
         rep.tables.push_back(
             make_table("cd", tau, v, PassTest::kLess, MatchRule::kBestOverall, false));
@@ -299,6 +329,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
               return ChamferDistance(ChamferSamples(*meshes[pred_mesh[i]], MixSeed(base, 1)),
                                      ChamferSamples(*meshes[g], MixSeed(base, 2)));
             });
+        if (t == 0) record_best(v, false, &GtObjectResult::best_cd, false);
         rep.tables.push_back(
             make_table("cd", taus[t], v, PassTest::kLess, MatchRule::kBestOverall, false));
       }
@@ -331,6 +362,7 @@ EvalReport Evaluate(const EvalInputs& in, const EvalOptions& opt) {
     const PairValues v = compute_pairs("lfd: pairs", [&](std::size_t i, int g) {
       return static_cast<double>(lfd::Distance(*desc[pred_mesh[i]], *desc[g], corrected));
     });
+    record_best(v, false, &GtObjectResult::best_lfd, false);
     for (double tau : {5000.0, 2500.0}) {
       rep.tables.push_back(
           make_table("lfd", tau, v, PassTest::kLess, MatchRule::kBestOverall, false));

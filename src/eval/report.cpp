@@ -114,6 +114,21 @@ std::string FormatMarkdown(const EvalReport& r) {
   return o.str();
 }
 
+std::string FormatObjectsMarkdown(const EvalReport& r) {
+  std::ostringstream o;
+  o << "### Per GT object: best value over the predictions of its scene and class\n\n"
+    << "| scene | GT mesh | class | best IoU | (prediction) | best CD | best LFD |\n"
+    << "|---|---|---|---|---|---|---|\n";
+  auto num = [](double v, const char* f) { return std::isnan(v) ? std::string("-") : Fmt(f, v); };
+  for (const GtObjectResult& g : r.objects) {
+    o << "| " << g.scene << " | " << g.name << " | "
+      << (g.cls >= 0 && g.cls < kNumClasses ? ClassNames()[g.cls] : "?") << " | "
+      << num(g.best_iou, "%.3f") << " | " << (g.best_iou_name.empty() ? "-" : g.best_iou_name)
+      << " | " << num(g.best_cd, "%.4f") << " | " << num(g.best_lfd, "%.0f") << " |\n";
+  }
+  return o.str();
+}
+
 std::string FormatJson(const EvalReport& r) {
   nlohmann::json j;
   j["protocol"] = ProtocolName(r.protocol);
@@ -148,6 +163,17 @@ std::string FormatJson(const EvalReport& r) {
                                         {"curve_precision", a.prec}};
     }
     j["tables"].push_back(jt);
+  }
+  j["objects"] = nlohmann::json::array();
+  auto num = [](double v) { return std::isnan(v) ? nlohmann::json() : nlohmann::json(v); };
+  for (const GtObjectResult& g : r.objects) {
+    j["objects"].push_back({{"scene", g.scene},
+                            {"gt", g.name},
+                            {"class", g.cls >= 0 && g.cls < kNumClasses ? ClassNames()[g.cls] : ""},
+                            {"best_iou", num(g.best_iou)},
+                            {"best_iou_prediction", g.best_iou_name},
+                            {"best_cd", num(g.best_cd)},
+                            {"best_lfd", num(g.best_lfd)}});
   }
   j["warnings"] = r.warnings;
   nlohmann::json tm = nlohmann::json::object();

@@ -323,6 +323,7 @@ struct PoolArgs {
   std::string shapenet, split = "all";  // a ShapeNet-format tree instead of --data
   int refine_steps = 0;  // latent refinement of each mu on the model's own occupancy samples
   double refine_lr = 0.01;
+  std::string append;  // an existing pool whose entries come first
 };
 
 void RunEncodePool(const PoolArgs& a) {
@@ -342,20 +343,44 @@ void RunEncodePool(const PoolArgs& a) {
     data = ShapeNetBspDataset(a.shapenet, sel);
   }
   const Eigen::MatrixXf codes = model.EncodeAll(data);
-  pipeline::ShapePool pool(model.config().latent_dim);
   const int L = model.config().latent_dim;
+  pipeline::ShapePool pool(L);
+  if (!a.append.empty()) {
+    // The existing entries (codes, classes, mesh paths) first, then the new ones; a pool of
+    // another latent size or a model id already in it is an error naming it.
+    pool = pipeline::ShapePool::Load(a.append);
+    if (pool.latent_dim() != L) {
+      throw InvalidArgument("encode-pool --append " + a.append + ": latent size " +
+                            std::to_string(pool.latent_dim()) + ", the model's is " +
+                            std::to_string(L));
+    }
+  }
+  const std::size_t first_new = pool.size();
   for (std::size_t s = 0; s < data.samples.size(); ++s) {
     Eigen::VectorXf code = codes.row(static_cast<Eigen::Index>(s)).transpose();
     if (a.refine_steps > 0) {
       code.head(L) = model.RefineLatent(code, data.samples[s], a.refine_steps, a.refine_lr).mu;
       std::fprintf(stderr, "\rrefine: %zu/%zu", s + 1, data.samples.size());
     }
-    pool.Add({data.samples[s].model_id, data.samples[s].cad_class, code});
+    try {
+      pool.Add({data.samples[s].model_id, data.samples[s].cad_class, code});
+    } catch (const InvalidArgument& e) {
+      throw InvalidArgument("encode-pool: model " + data.samples[s].model_id + ": " + e.what());
+    }
   }
   if (a.refine_steps > 0) std::fprintf(stderr, "\n");
+  if (!a.shapenet.empty()) {
+    // Retrieval needs each model's mesh: the tree's own files (absolute paths; entries of an
+    // appended pool that the tree does not hold keep theirs).
+    pool.AttachMeshTree(std::filesystem::absolute(a.shapenet).string());
+  }
   pool.Save(a.out);
-  std::printf("encoded %zu CAD models into %s (content hash %s)\n", pool.size(), a.out.c_str(),
-              pool.ContentHash().c_str());
+  std::printf("encoded %zu CAD models into %s (content hash %s)%s\n", pool.size() - first_new,
+              a.out.c_str(), pool.ContentHash().c_str(),
+              a.append.empty() ? ""
+                               : (", after the " + std::to_string(first_new) + " entries of " +
+                                  a.append + ": " + std::to_string(pool.size()) + " in all")
+                                     .c_str());
 }
 
 // ---------------------------------------------------------------- interpolate
@@ -548,6 +573,9 @@ void SetupPool(CLI::App& app) {
                  "points (0 = the encoder's mu; logvar is kept)")
       ->check(CLI::Range(0, 10000));
   app.add_option("--refine-lr", a->refine_lr, "learning rate of the latent refinement");
+  app.add_option("--append", a->append,
+                 "start from this pool (its entries and mesh paths first), e.g. the shipped pool "
+                 "plus real furniture (dimr cad import)");
   app.callback([a]() { RunEncodePool(*a); });
 }
 

@@ -28,6 +28,7 @@ struct EvalArgs {
   std::string svg_dir;
   std::string lfd_cache;
   int threads = 0;
+  bool per_object = false;
   unsigned long long seed = 0;
   bool quiet = false;
 };
@@ -59,7 +60,8 @@ void RunEval(const EvalArgs& a) {
                  a.pred_dir.c_str());
   }
   const dimr::eval::EvalReport rep = dimr::eval::Evaluate(in, opt);
-  const std::string md = dimr::eval::FormatMarkdown(rep);
+  const std::string md = dimr::eval::FormatMarkdown(rep) +
+                         (a.per_object ? "\n" + dimr::eval::FormatObjectsMarkdown(rep) : "");
   std::fputs(md.c_str(), stdout);
   for (const std::string& w : rep.warnings)
     std::fprintf(stderr, "dimr eval: warning: %s\n", w.c_str());
@@ -108,6 +110,9 @@ void SetupEval(CLI::App& app) {
   app.add_option("--seed", args->seed, "Seed of the Chamfer surface sampling")
       ->capture_default_str();
   app.add_flag("--quiet", args->quiet, "No progress bars");
+  app.add_flag("--per-object", args->per_object,
+               "Also print, per GT mesh, its best IoU (and which prediction), CD and LFD over the "
+               "predictions of its scene and class (always in --json)");
   app.callback([args]() {
     if (!args->lfd_cache.empty()) {
       std::error_code ec;

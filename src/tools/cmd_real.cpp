@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -160,7 +161,7 @@ struct RealEvalArgs {
   double box_margin = 0.0;
   std::vector<std::string> box_exclude;  // RFS class names dropped from the box GT sets
   double iou = 0.5;
-  double voxel = 0.0;
+  std::string voxel = "auto";  // auto | 0 | edge in metres
 };
 
 void RunRealEval(const RealEvalArgs& a) {
@@ -180,11 +181,28 @@ void RunRealEval(const RealEvalArgs& a) {
   for (const auto& p : c.points) scan.points.push_back(p.cast<float>());
   for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
   if (a.grey) scan.colors.assign(scan.points.size(), Eigen::Vector3f::Constant(0.5f));
+  // The product's density rule (dimr reconstruct --input-voxel, the node's input_voxel_size):
+  // auto = voxel means at the training density when the scan is denser than it.
+  double voxel = 0.0;
   pipeline::VoxelDownsample reduced;
-  if (a.voxel > 0) reduced = pipeline::VoxelMeanDownsample(scan, a.voxel);
-  const pipeline::PointCloudInput& in = a.voxel > 0 ? reduced.cloud : scan;
+  if (a.voxel == "auto") {
+    reduced = pipeline::VoxelMeanDownsample(scan, pipeline::kTrainingVoxelSize);
+    if (static_cast<double>(scan.points.size()) >
+        pipeline::kDenserThanTrainingPointsPerCell * static_cast<double>(reduced.cloud.size())) {
+      voxel = pipeline::kTrainingVoxelSize;
+    }
+  } else {
+    char* end = nullptr;
+    voxel = std::strtod(a.voxel.c_str(), &end);
+    if (a.voxel.empty() || *end != '\0' || !std::isfinite(voxel) || voxel < 0 || voxel > 1) {
+      throw InvalidArgument("--voxel: expected auto, 0 or an edge in (0, 1] m, got '" + a.voxel +
+                            "'");
+    }
+    if (voxel > 0) reduced = pipeline::VoxelMeanDownsample(scan, voxel);
+  }
+  const pipeline::PointCloudInput& in = voxel > 0 ? reduced.cloud : scan;
   pipeline::Stage1Result r = seg.Segment(in);
-  if (a.voxel > 0) {
+  if (voxel > 0) {
     // Back to every scan point: the label of its cell, the instances of their cells' points.
     r.semantic = pipeline::ExpandCellLabels(r.semantic, reduced.cell_of_point);
     r.cad_label = pipeline::ExpandCellLabels(r.cad_label, reduced.cell_of_point);
@@ -197,7 +215,7 @@ void RunRealEval(const RealEvalArgs& a) {
               source.c_str(), inf.ToString().c_str(), a.grey ? ", colours set to grey" : "");
   std::printf("stage 1: %d network passes, %.1f s, on %zu points%s\n", inf.network_passes(),
               r.timings.ms("total") / 1000.0, in.points.size(),
-              a.voxel > 0 ? (" (voxel means, " + Num(a.voxel, 3) + " m)").c_str() : "");
+              voxel > 0 ? (" (voxel means, " + Num(voxel, 3) + " m)").c_str() : "");
 
   // Semantic: RFS 25 from NYU40; DODA 11 straight from NYU40; CAD 8 from RFS.
   const int n = static_cast<int>(c.points.size());
@@ -224,7 +242,7 @@ void RunRealEval(const RealEvalArgs& a) {
   j["model"] = a.inference.model;
   j["inference"] = inf.ToString();
   j["grey"] = a.grey;
-  j["voxel"] = a.voxel;
+  j["voxel"] = voxel;
   j["network_points"] = in.points.size();
   j["seconds"] = r.timings.ms("total") / 1000.0;
   j["semantic_rfs25"] = ReportJson(s25);
@@ -370,9 +388,10 @@ void SetupRealEval(CLI::App& app) {
   app.add_option("--iou", a->iou, "point IoU for an object to count as found")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--voxel", a->voxel,
-                 "run stage 1 on voxel means of this edge (0 = the scan's points; 0.045 = "
-                 "SynthScan's fused density); labels go back to every scan point [m]")
-      ->check(CLI::Range(0.0, 1.0));
+                 "run stage 1 on voxel means of this edge, labels back to every scan point: auto "
+                 "(default, as dimr reconstruct --input-voxel) = 0.045 m, SynthScan's fused "
+                 "density, when the scan holds more than 1.5 points per such cell; 0 = the "
+                 "scan's points; or an edge in m");
   app.add_option("--json", a->json, "write the numbers as JSON");
   app.add_option("--render-dir", a->render_dir,
                  "write GT-vs-prediction pictures (<scene>_semantic.png, <scene>_instances.png)");

@@ -175,6 +175,28 @@ TEST(BspCli, PrepareAndPoolFromAShapeNetTree) {
   EXPECT_FALSE(tree_hash.empty());
   EXPECT_EQ(PoolHash(out), tree_hash) << out;
 
+  // --append: an existing pool first, then the new models (a real-furniture import on top of
+  // the shipped pool); a model already in the pool is an error naming it.
+  std::tie(rc, out) = RunCli("cad generate --class chair --count 2 --seed 7001 --out " + d + "/more");
+  ASSERT_EQ(rc, 0) << out;
+  std::tie(rc, out) =
+      RunCli("encode-pool --model " + model + " --shapenet " + d + "/more --append " + d +
+             "/pool_data.bin --out " + d + "/pool_more.bin");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("encoded 2 CAD models"), std::string::npos) << out;
+  EXPECT_NE(out.find("after the 24 entries of " + d + "/pool_data.bin: 26 in all"),
+            std::string::npos)
+      << out;
+  EXPECT_NE(PoolHash(out), tree_hash);
+  std::tie(rc, out) = RunCli("encode-pool --model " + model + " --shapenet " + d +
+                             "/more --append " + d + "/pool_more.bin --out " + d + "/p2.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("encode-pool: model "), std::string::npos) << out;
+  std::tie(rc, out) = RunCli("encode-pool --model " + model + " --shapenet " + d +
+                             "/more --append " + d + "/none.bin --out " + d + "/p3.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find(d + "/none.bin"), std::string::npos) << out;
+
   // Errors: no tree, both sources, a split without a tree, a corrupt model (named).
   std::tie(rc, out) = RunCli("bsp prepare --shapenet " + d + "/none --out " + d + "/x.bin");
   EXPECT_NE(rc, 0);

@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -142,11 +143,30 @@ TEST_F(EvalFixture, HandComputedAp) {
   EXPECT_DOUBLE_EQ(pcr->classes[0].ap, 1.0);
   EXPECT_EQ(pcr->classes[1].npos, 2);
 
+  // Per GT object: its best IoU among the predictions of its scene and class (the far chair
+  // and the other scene's shapes do not count), LFD asked, CD not.
+  ASSERT_EQ(r.objects.size(), 3u);
+  EXPECT_EQ(r.objects[0].name, "scene0000_00_0_chair_1.ply");
+  EXPECT_NEAR(r.objects[0].best_iou, 1.0, 1e-12);
+  EXPECT_EQ(r.objects[0].best_iou_name, "scene0000_00_0_chair_0.9000.ply");
+  EXPECT_EQ(r.objects[0].best_iou_pred, 0);
+  EXPECT_NEAR(r.objects[1].best_iou, 16.0 / 26.0, 1e-12);  // the table
+  EXPECT_EQ(r.objects[1].cls, 0);
+  EXPECT_NEAR(r.objects[2].best_iou, 11.0 / 31.0, 1e-12);  // scene0001's chair
+  EXPECT_EQ(r.objects[2].best_iou_name, "scene0001_00_3_chair_0.8000.ply");
+  EXPECT_TRUE(std::isnan(r.objects[2].best_cd));
+  EXPECT_LT(r.objects[2].best_lfd, 2500.0);
+  const std::string objects = FormatObjectsMarkdown(r);
+  EXPECT_NE(objects.find("| scene0000_00 | scene0000_00_1_table_1.ply | table | 0.615 |"),
+            std::string::npos)
+      << objects;
+
   const std::string md = FormatMarkdown(r);
   EXPECT_NE(md.find("IoU@0.25"), std::string::npos);
   EXPECT_NE(md.find("84.85"), std::string::npos);  // 28/33
   const std::string js = FormatJson(r);
   EXPECT_NE(js.find("\"mAP\""), std::string::npos);
+  EXPECT_NE(js.find("\"best_iou_prediction\""), std::string::npos);
   const std::string svg = PrCurveSvg(*iou25);
   EXPECT_EQ(svg.rfind("<svg", 0), 0u);
   EXPECT_NE(svg.find("polyline"), std::string::npos);

@@ -39,10 +39,26 @@ struct StageTiming {
   double seconds = 0.0;
 };
 
+// Per GT mesh: the best value of each mesh metric over the predictions of its scene and class
+// (NaN when the metric was not asked or no such prediction exists) - what keeps an object from
+// counting, independent of AP ranking. CD is the first Chamfer pass (the reference protocol
+// re-samples per threshold).
+struct GtObjectResult {
+  std::string scene;
+  std::string name;  // the GT mesh's file basename
+  int cls = -1;
+  double best_iou = 0.0;
+  int best_iou_pred = -1;     // index into EvalInputs::preds, -1 if none
+  std::string best_iou_name;  // that prediction's file basename
+  double best_cd = 0.0;
+  double best_lfd = 0.0;
+};
+
 struct EvalReport {
   Protocol protocol = Protocol::kReference;
   // In order: iou@0.25, iou@0.5, cd@0.1, cd@0.047, lfd@5000, lfd@2500, pcr@0.5 (those asked).
   std::vector<ApTable> tables;
+  std::vector<GtObjectResult> objects;  // one per GT mesh, in EvalInputs::gt order
   int num_scenes = 0;
   int num_gt = 0;
   int num_preds = 0;      // predictions evaluated by the mesh metrics
