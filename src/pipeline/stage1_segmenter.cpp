@@ -134,6 +134,18 @@ std::string ClusterPassesToString(const std::vector<ClusterPass>& passes) {
 // ---------------------------------------------------------------- config
 namespace {
 
+// "" when `parse` succeeds, else the message of the dimr::InvalidArgument it throws (a config
+// field's setter reports a bad value this way).
+template <typename F>
+std::string ErrorOf(F&& parse) {
+  try {
+    parse();
+  } catch (const InvalidArgument& e) {
+    return e.what();
+  }
+  return "";
+}
+
 std::string BiasToString(const std::vector<float>& bias) {
   std::string r;
   for (float b : bias) {
@@ -230,13 +242,8 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 "colour-stats), or none",
                 false,
                 [](const C& c) { return c.colour_norm ? c.colour_range.ToString() : "none"; },
-                [](C& c, const std::string& v) -> std::string {
-                  try {
-                    c.colour_norm = ColourRange::Parse(v, &c.colour_range);
-                  } catch (const InvalidArgument& e) {
-                    return e.what();
-                  }
-                  return "";
+                [](C& c, const std::string& v) {
+                  return ErrorOf([&] { c.colour_norm = ColourRange::Parse(v, &c.colour_range); });
                 },
                 nullptr,  // Parse checks every value
                 [](const C& c) { return c.colour_norm; }})
@@ -250,13 +257,8 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 "RFS classes kept out of the semantic vote (comma-separated names, e.g. "
                 "picture,display), or none",
                 false, [](const C& c) { return RfsClassListToString(c.vote_exclude); },
-                [](C& c, const std::string& v) -> std::string {
-                  try {
-                    c.vote_exclude = ParseRfsClassList(v);
-                  } catch (const InvalidArgument& e) {
-                    return e.what();
-                  }
-                  return "";
+                [](C& c, const std::string& v) {
+                  return ErrorOf([&] { c.vote_exclude = ParseRfsClassList(v); });
                 },
                 [](const C& c) -> std::string {
                   for (int k : c.vote_exclude) {
@@ -270,13 +272,8 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 "below CLASS's value cannot take CLASS (comma-separated CLASS:metres, e.g. "
                 "sofa:0.8), or none",
                 false, [](const C& c) { return RfsClassValuesToString(c.vote_min_extent); },
-                [](C& c, const std::string& v) -> std::string {
-                  try {
-                    c.vote_min_extent = ParseRfsClassValues(v);
-                  } catch (const InvalidArgument& e) {
-                    return e.what();
-                  }
-                  return "";
+                [](C& c, const std::string& v) {
+                  return ErrorOf([&] { c.vote_min_extent = ParseRfsClassValues(v); });
                 },
                 [](const C& c) -> std::string {
                   if (!c.vote_min_extent.empty() &&

@@ -66,19 +66,23 @@ TEST(RealEval, TrsComposesTranslateRotateScale) {
   EXPECT_NEAR((p.head<3>() - Vec3(1, 4, 3)).norm(), 0.0, 1e-12);
 }
 
+// Scan frame = world shifted by (10, 0, 0): trs_scan = Translate(10, 0, 0), so
+// p_scan = p_world - (10, 0, 0). The CAD box: centre (0, 0.1, 0), half extents (0.5, 0.25,
+// 0.5) in CAD units, scaled by (2, 2, 2), rotated 90 degrees about z, placed at (11, 1, 0).
+void RotatedScaledBox(data::Scan2CadScene* scene, data::Scan2CadModel* m) {
+  scene->id_scan = "s";
+  scene->translation = Vec3(10, 0, 0);
+  m->translation = Vec3(11, 1, 0);
+  m->rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
+  m->scale = Vec3(2, 2, 2);
+  m->bbox = Vec3(0.5, 0.25, 0.5);
+  m->center = Vec3(0, 0.1, 0);
+}
+
 TEST(RealEval, PointsInsideAnAlignedBox) {
-  // Scan frame = world shifted by (10, 0, 0): trs_scan = Translate(10, 0, 0), so
-  // p_scan = p_world - (10, 0, 0). The CAD box: centre (0, 0.1, 0), half extents (0.5, 0.25,
-  // 0.5) in CAD units, scaled by (2, 2, 2), rotated 90 degrees about z, placed at (11, 1, 0).
   data::Scan2CadScene scene;
-  scene.id_scan = "s";
-  scene.translation = Vec3(10, 0, 0);
   data::Scan2CadModel m;
-  m.translation = Vec3(11, 1, 0);
-  m.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
-  m.scale = Vec3(2, 2, 2);
-  m.bbox = Vec3(0.5, 0.25, 0.5);
-  m.center = Vec3(0, 0.1, 0);
+  RotatedScaledBox(&scene, &m);
   const Eigen::Matrix4d to_scan = Scan2CadModelToScan(scene, m);
   // Box centre in the scan: (11, 1, 0) + Rz(90)(0, 0.2, 0) - (10, 0, 0) = (0.8, 1, 0); its
   // half extents in the scan: along y 1.0 (CAD x), along x 0.5 (CAD y), along z 1.0.
@@ -103,13 +107,8 @@ TEST(RealEval, AlignedCadMeshLiesInItsOwnBox) {
   // bbox (centre (0, 0.1, 0), half extents (0.5, 0.25, 0.5)) must land on the box's corners in
   // the scan: inside with a 1 mm margin, outside with -1 cm.
   data::Scan2CadScene scene;
-  scene.translation = Vec3(10, 0, 0);
   data::Scan2CadModel m;
-  m.translation = Vec3(11, 1, 0);
-  m.rotation = Eigen::Quaterniond(Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()));
-  m.scale = Vec3(2, 2, 2);
-  m.bbox = Vec3(0.5, 0.25, 0.5);
-  m.center = Vec3(0, 0.1, 0);
+  RotatedScaledBox(&scene, &m);
   const Eigen::Matrix4d to_scan = Scan2CadModelToScan(scene, m);
   geometry::TriangleMesh cad;
   for (int k = 0; k < 8; ++k) {
