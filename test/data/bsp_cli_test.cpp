@@ -177,7 +177,8 @@ TEST(BspCli, PrepareAndPoolFromAShapeNetTree) {
 
   // --append: an existing pool first, then the new models (a real-furniture import on top of
   // the shipped pool); a model already in the pool is an error naming it.
-  std::tie(rc, out) = RunCli("cad generate --class chair --count 2 --seed 7001 --out " + d + "/more");
+  std::tie(rc, out) =
+      RunCli("cad generate --class chair --count 2 --seed 7001 --out " + d + "/more");
   ASSERT_EQ(rc, 0) << out;
   std::tie(rc, out) =
       RunCli("encode-pool --model " + model + " --shapenet " + d + "/more --append " + d +
