@@ -98,6 +98,7 @@ DensityNormalisation NormaliseDensity(const PointCloudInput& input, double voxel
       static_cast<double>(input.points.size()) / static_cast<double>(reduced.cloud.points.size());
   out.applied = out.points_per_cell > min_points_per_cell;
   out.cloud = out.applied ? std::move(reduced.cloud) : input;
+  if (out.applied) out.cell_of_point = std::move(reduced.cell_of_point);
   return out;
 }
 

@@ -187,10 +187,12 @@ void RunRealEval(const RealEvalArgs& a) {
   double voxel = 0.0;
   pipeline::VoxelDownsample reduced;
   if (a.voxel == "auto") {
-    reduced = pipeline::VoxelMeanDownsample(scan, pipeline::kTrainingVoxelSize);
-    if (static_cast<double>(scan.points.size()) >
-        pipeline::kDenserThanTrainingPointsPerCell * static_cast<double>(reduced.cloud.size())) {
+    pipeline::DensityNormalisation d = pipeline::NormaliseDensity(
+        scan, pipeline::kTrainingVoxelSize, pipeline::kDenserThanTrainingPointsPerCell);
+    if (d.applied) {
       voxel = pipeline::kTrainingVoxelSize;
+      reduced.cloud = std::move(d.cloud);
+      reduced.cell_of_point = std::move(d.cell_of_point);
     }
   } else {
     char* end = nullptr;

@@ -66,6 +66,8 @@ TEST(NormaliseDensity, ReducesDenseCloudsOnlyAndReportsTheRatio) {
   EXPECT_TRUE(a.applied);
   EXPECT_NEAR(a.points_per_cell, 3600.0 / 196.0, 1e-9);
   EXPECT_EQ(a.cloud.points.size(), 196u);
+  // Every input point knows its cell (the same map VoxelMeanDownsample gives).
+  EXPECT_EQ(a.cell_of_point, VoxelMeanDownsample(dense, 0.045).cell_of_point);
   // 5 cm grid (coarser than the cell): one point per occupied cell: left as it is.
   PointCloudInput sparse;
   for (int i = 0; i < 20; ++i)
@@ -74,6 +76,7 @@ TEST(NormaliseDensity, ReducesDenseCloudsOnlyAndReportsTheRatio) {
   EXPECT_FALSE(b.applied);
   EXPECT_NEAR(b.points_per_cell, 1.0, 1e-9);
   EXPECT_EQ(b.cloud.points, sparse.points);
+  EXPECT_TRUE(b.cell_of_point.empty());
   // The same dense grid with a threshold above its ratio is kept.
   EXPECT_FALSE(NormaliseDensity(dense, 0.045, 20.0).applied);
   // Empty: nothing to do; bad thresholds are errors.

@@ -36,6 +36,7 @@ VoxelDownsample VoxelMeanDownsample(const PointCloudInput& input, double voxel);
 // ratio either way. Throws as VoxelMeanDownsample and for min_points_per_cell < 1.
 struct DensityNormalisation {
   PointCloudInput cloud;
+  std::vector<int> cell_of_point;  // when applied: per input point its index in `cloud`
   bool applied = false;
   double points_per_cell = 0.0;
 };
