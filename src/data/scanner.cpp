@@ -570,6 +570,16 @@ const config::Fields<ScannerConfig>& ScannerFields() {
               "height_cap_probability", [](C& c) -> double& { return c.height_cap_probability; },
               "", "scans that stop at a height", 0.0, 1.0)
           .Number(
+              "ceiling_probability", [](C& c) -> double& { return c.ceiling_probability; }, "",
+              "scans that keep the ceiling's returns", 0.0, 1.0)
+          .Number(
+              "ceiling_look_up_fraction",
+              [](C& c) -> double& { return c.ceiling_look_up_fraction; }, "",
+              "share of frames with a twin looking up (ceiling scans)", 0.0, 1.0)
+          .Number(
+              "ceiling_max_up_deg", [](C& c) -> double& { return c.ceiling_max_up_deg; }, "deg",
+              "largest upward pitch of those twins", 10.0, 80.0)
+          .Number(
               "white_balance_jitter", [](C& c) -> double& { return c.white_balance_jitter; }, "",
               "per-channel log gain sigma", 0.0, 1.0)
           .Number(
@@ -697,6 +707,11 @@ void ScannerConfig::Validate() const {
   if (!(height_cap_probability >= 0 && height_cap_probability <= 1 && height_cap_min > 0.2 &&
         height_cap_max >= height_cap_min))
     fail("need height_cap_probability in [0, 1] and 0.2 < height_cap_min <= height_cap_max");
+  if (!(ceiling_probability >= 0 && ceiling_probability <= 1 && ceiling_look_up_fraction >= 0 &&
+        ceiling_look_up_fraction <= 1 && ceiling_max_up_deg >= 10 && ceiling_max_up_deg <= 80))
+    fail(
+        "need ceiling_probability, ceiling_look_up_fraction in [0, 1] and ceiling_max_up_deg in "
+        "[10, 80]");
   if (!(white_balance_jitter >= 0 && white_balance_jitter <= 1 && exposure_jitter >= 0 &&
         exposure_jitter <= 1 && frame_exposure_jitter >= 0 && frame_exposure_jitter <= 1))
     fail("colour jitters must be in [0, 1]");
@@ -713,6 +728,19 @@ void ScannerConfig::Validate() const {
   if (!(max_fused_sigma > 0)) fail("max_fused_sigma must be > 0");
   if (raw_pixel_stride < 1 || frame_pixel_stride < 1) fail("pixel strides must be >= 1");
   if (threads < 0) fail("threads must be >= 0");
+}
+
+// Camera optical frame (x right, y down, z forward) in the world for a heading `yaw`, a
+// downward pitch `tilt` (negative: looking up) and a roll about the optical axis (radians).
+static Eigen::Matrix3d CameraRotation(double yaw, double tilt, double roll) {
+  const Vec3 fwd(std::cos(yaw) * std::cos(tilt), std::sin(yaw) * std::cos(tilt), -std::sin(tilt));
+  const Vec3 right = fwd.cross(Vec3::UnitZ()).normalized();
+  const Vec3 down = fwd.cross(right);
+  Eigen::Matrix3d r;
+  r.col(0) = right;
+  r.col(1) = down;
+  r.col(2) = fwd;
+  return r * Eigen::AngleAxisd(roll, Vec3::UnitZ()).toRotationMatrix();
 }
 
 std::vector<Eigen::Isometry3d> MakeTrajectory(const Room& room, const ScannerConfig& cfg,
@@ -769,16 +797,8 @@ std::vector<Eigen::Isometry3d> MakeTrajectory(const Room& room, const ScannerCon
         Deg(0.5 * (cfg.min_tilt_deg + cfg.max_tilt_deg) +
             0.5 * (cfg.max_tilt_deg - cfg.min_tilt_deg) * std::sin(2 * kPi * 4 * u + phase[1]));
     const double roll = Deg(rng.Normal(0, 2.0));
-    const Vec3 fwd(std::cos(yaw) * std::cos(tilt), std::sin(yaw) * std::cos(tilt), -std::sin(tilt));
-    const Vec3 right = fwd.cross(Vec3::UnitZ()).normalized();
-    const Vec3 down = fwd.cross(right);
-    Eigen::Matrix3d r;
-    r.col(0) = right;
-    r.col(1) = down;
-    r.col(2) = fwd;
-    r = r * Eigen::AngleAxisd(roll, Vec3::UnitZ()).toRotationMatrix();
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() = r;
+    pose.linear() = CameraRotation(yaw, tilt, roll);
     pose.translation() = Vec3(p.x(), p.y(), z);
     poses.push_back(pose);
   }
@@ -830,6 +850,29 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
     Rng cap(HashCombine(seed, 0xca9ULL));
     if (cap.Bernoulli(cfg.height_cap_probability))
       height_cap = cap.Uniform(cfg.height_cap_min, cfg.height_cap_max);
+  }
+  // Ceiling scans: every k-th frame gets a twin from the same position looking up (inserted
+  // after it, so drift stays continuous along the trajectory); a capped scan sees no ceiling.
+  bool keep_ceiling = false;
+  if (cfg.ceiling_probability > 0 && !std::isfinite(height_cap)) {
+    Rng ceil_rng(HashCombine(seed, 0xce11ULL));
+    keep_ceiling = ceil_rng.Bernoulli(cfg.ceiling_probability);
+    if (keep_ceiling && cfg.ceiling_look_up_fraction > 0 && !poses.empty()) {
+      const int every =
+          std::max(1, static_cast<int>(std::lround(1.0 / cfg.ceiling_look_up_fraction)));
+      std::vector<Eigen::Isometry3d> with_twins;
+      for (std::size_t f = 0; f < poses.size(); ++f) {
+        with_twins.push_back(poses[f]);
+        if (f % every != 0) continue;
+        const Vec3 fwd = poses[f].linear().col(2);
+        Eigen::Isometry3d up = poses[f];
+        up.linear() = CameraRotation(std::atan2(fwd.y(), fwd.x()),
+                                     -Deg(ceil_rng.Uniform(10.0, cfg.ceiling_max_up_deg)),
+                                     Deg(ceil_rng.Normal(0, 2.0)));
+        with_twins.push_back(up);
+      }
+      poses.swap(with_twins);
+    }
   }
   Rng exposure_rng(HashCombine(seed, 0xe7905ULL));
   // Wandering auto exposure: AR(1) log gain, correlation length 25 % of the frames (a pass
@@ -928,7 +971,7 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
             p_drop += (cos_start - cosi) / std::max(1e-9, cos_start - cos_end);
           }
           if (r_drop < p_drop) continue;
-          if (o.role == ObjectRole::kCeiling) continue;
+          if (o.role == ObjectRole::kCeiling && !keep_ceiling) continue;
           const Vec3 hit = org + dw * t;
           if (hit.z() > height_cap) continue;
           // Albedo: the object's (v2: the scene look's), or for real furniture its own texture

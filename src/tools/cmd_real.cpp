@@ -27,6 +27,7 @@
 #include "dimr/pipeline/bsp_data.h"
 #include "dimr/pipeline/bsp_decoder.h"
 #include "dimr/pipeline/bsp_mesher.h"
+#include "dimr/pipeline/ceiling.h"
 #include "dimr/pipeline/point_cloud_input.h"
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "dimr/pipeline/voxel_downsample.h"
@@ -163,6 +164,7 @@ struct RealEvalArgs {
   std::vector<std::string> box_exclude;  // RFS class names dropped from the box GT sets
   double iou = 0.5;
   std::string voxel = "auto";  // auto | 0 | edge in metres
+  std::string ceiling = "auto";
 };
 
 void RunRealEval(const RealEvalArgs& a) {
@@ -182,6 +184,10 @@ void RunRealEval(const RealEvalArgs& a) {
   for (const auto& p : c.points) scan.points.push_back(p.cast<float>());
   for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
   if (a.grey) scan.colors.assign(scan.points.size(), Eigen::Vector3f::Constant(0.5f));
+  // As the product does: a detected ceiling leaves before stage 1 (its points: no class).
+  pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(scan, CeilingFromFlag(a.ceiling));
+  const std::size_t scan_points = scan.points.size();
+  if (cut.found) scan = std::move(cut.cloud);
   // The product's density rule (dimr reconstruct --input-voxel, the node's input_voxel_size):
   // auto = voxel means at the training density when the scan is denser than it.
   double voxel = 0.0;
@@ -212,6 +218,15 @@ void RunRealEval(const RealEvalArgs& a) {
     for (auto& inst : r.instances)
       inst.points = pipeline::ExpandCellPoints(inst.points, reduced.cell_of_point);
   }
+  if (cut.found) {
+    r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, scan_points, -1);
+    r.cad_label = pipeline::ExpandKeptLabels(r.cad_label, cut.kept, scan_points, -1);
+    for (auto& inst : r.instances) inst.points = pipeline::ExpandKeptPoints(inst.points, cut.kept);
+  }
+  std::printf("ceiling: %s\n", cut.found ? ("removed at z = " + Num(cut.ceiling_z, 2) + " m (" +
+                                            std::to_string(cut.removed) + " points)")
+                                               .c_str()
+                                         : ("none found (--ceiling " + a.ceiling + ")").c_str());
 
   std::printf("%s: %zu points, model %s (%s), inference from %s: %s%s\n", c.name.c_str(),
               c.points.size(), a.inference.model.c_str(), seg.model_config().c_str(),
@@ -418,6 +433,7 @@ void SetupRealEval(CLI::App& app) {
                  "grow (or shrink, < 0) the Scan2CAD boxes by this much per side [m]");
   app.add_option("--iou", a->iou, "point IoU for an object to count as found")
       ->check(CLI::Range(0.0, 1.0));
+  AddCeilingFlag(app, &a->ceiling);
   app.add_option("--voxel", a->voxel,
                  "run stage 1 on voxel means of this edge, labels back to every scan point: auto "
                  "(default, as dimr reconstruct --input-voxel) = 0.045 m, SynthScan's fused "

@@ -16,10 +16,12 @@
 
 #include "dimr/data/labels.h"
 #include "dimr/geometry/error.h"
+#include "dimr/pipeline/ceiling.h"
 #include "dimr/pipeline/reconstructor.h"
 #include "dimr/pipeline/voxel_downsample.h"
 #include "tools/command_registry.h"
 #include "tools/reconstruct_io.h"
+#include "tools/stage1_inference_args.h"
 
 namespace {
 
@@ -37,6 +39,7 @@ struct ReconstructArgs {
   std::string crop;  // xmin,ymin,zmin,xmax,ymax,zmax
   double scale = 1.0;
   std::string input_voxel = "auto";  // voxel-mean filter: auto | 0 (off) | size in metres
+  std::string ceiling = "auto";      // ceiling removal (pipeline/ceiling.h): auto | off
   bool no_icp = false;
   std::string icp_backend = "own";
   std::string score = "combined";
@@ -77,6 +80,7 @@ void RunReconstruct(ReconstructArgs& a) {
     throw dimr::InvalidArgument("--input-voxel: expected auto, 0 or a size in metres, got '" +
                                 a.input_voxel + "'");
   }
+  const dimr::pipeline::CeilingConfig ceiling = dimr::tools::CeilingFromFlag(a.ceiling);
   dimr::pipeline::ReconstructorConfig& cfg = a.config;
   // One mode, or several (comma-separated): the networks run once per scene, the other modes
   // re-mesh that result (Reconstructor::Remesh) into DIR/<mode>/.
@@ -125,6 +129,16 @@ void RunReconstruct(ReconstructArgs& a) {
         for (auto& p : s.cloud.points) p *= a.scale;
       }
       auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
+      if (ceiling.enabled) {
+        dimr::pipeline::CeilingRemoval cut = dimr::pipeline::RemoveCeiling(input, ceiling);
+        if (cut.found) {
+          input = std::move(cut.cloud);
+          if (!a.quiet) {
+            std::printf("%s: ceiling at z = %.2f m removed (%zu points, %.1f m² flat)\n",
+                        s.name.c_str(), cut.ceiling_z, cut.removed, cut.area);
+          }
+        }
+      }
       if (voxel > 0) {
         const std::size_t before = input.points.size();
         // auto: only clouds denser than the training density; a size: always.
@@ -236,6 +250,7 @@ void SetupReconstruct(CLI::App& app) {
                  "scans; SynthScan mesh density ~1 is left as it is), 0 = off, or a size in m "
                  "(always; docs/results.md 'Input density')")
       ->capture_default_str();
+  dimr::tools::AddCeilingFlag(app, &a->ceiling);
   app.add_option("--scale", a->scale, "multiply coordinates first (0.001 for millimetres)")
       ->capture_default_str();
   app.add_option("--threads", c.threads, "network threads (0 = default)")->capture_default_str();

@@ -25,6 +25,7 @@
 #include "dimr/geometry/error.h"
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/calibration.h"
+#include "dimr/pipeline/ceiling.h"
 #include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/model_card.h"
 #include "dimr/pipeline/stage1_segmenter.h"
@@ -108,18 +109,40 @@ pipeline::PointCloudInput InputOf(const nn::Stage1Sample& s) {
 }
 
 // ---------------------------------------------------------------- evaluation
+pipeline::CeilingConfig NoCeilingRemoval() {
+  pipeline::CeilingConfig c;
+  c.enabled = false;
+  return c;
+}
+
 struct Stage1EvalRun : eval::Stage1Metrics {
   double network_s = 0, cluster_s = 0;
+  int ceilings = 0;                // scenes in which a ceiling was found and removed
+  std::size_t ceiling_points = 0;  // points removed with them
   std::vector<std::vector<pipeline::ScoredInstance>> predictions;  // per scene (if kept)
 };
 
 // Every scene through the segmenter, scored against its labels.
+// With `ceiling` enabled a detected ceiling is removed first (pipeline/ceiling.h): its points
+// are predicted as no class and belong to no instance.
 Stage1EvalRun EvaluateScenes(const pipeline::Stage1Segmenter& segmenter,
-                             const std::vector<nn::Stage1Sample>& scenes, bool keep_predictions) {
+                             const std::vector<nn::Stage1Sample>& scenes, bool keep_predictions,
+                             const pipeline::CeilingConfig& ceiling = NoCeilingRemoval()) {
   Stage1EvalRun run;
   eval::Stage1MetricsAccumulator acc(nn::kStage1Classes, data::kNumCadClasses);
   for (const auto& s : scenes) {
-    pipeline::Stage1Result r = segmenter.Segment(InputOf(s));
+    pipeline::Stage1Result r;
+    const pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(InputOf(s), ceiling);
+    if (cut.found) {
+      r = segmenter.Segment(cut.cloud);
+      r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, s.points.size(), -1);
+      for (auto& inst : r.instances)
+        inst.points = pipeline::ExpandKeptPoints(inst.points, cut.kept);
+      ++run.ceilings;
+      run.ceiling_points += cut.removed;
+    } else {
+      r = segmenter.Segment(InputOf(s));
+    }
     run.network_s += r.timings.ms("network") / 1e3;
     run.cluster_s +=
         (r.timings.ms("class_bias") + r.timings.ms("vote") + r.timings.ms("clustering")) / 1e3;
@@ -503,6 +526,7 @@ struct EvalArgs {
   std::vector<std::string> scans;  // scene sets (LoadSceneSets)
   std::string json, render_dir;
   int limit = 0, render = 0, threads = 2;
+  std::string ceiling = "auto";
 };
 
 void AddSceneFlags(CLI::App& app, EvalArgs* a) {
@@ -526,8 +550,11 @@ void RunEval(const EvalArgs& a) {
   std::printf("inference %s (from %s and the flags)\n", inf.ToString().c_str(), source.c_str());
   std::printf("clustering passes %s, min %d points per cluster, NMS %.2f, keep > %d points\n",
               passes.c_str(), inf.cluster_min_points, inf.nms_iou, inf.min_points);
-  const Stage1EvalRun r = EvaluateScenes(segmenter, scenes, a.render > 0);
+  const Stage1EvalRun r =
+      EvaluateScenes(segmenter, scenes, a.render > 0, CeilingFromFlag(a.ceiling));
   PrintEval(r);
+  std::printf("ceiling removed in %d of %zu scenes (%zu points; --ceiling %s)\n", r.ceilings,
+              scenes.size(), r.ceiling_points, a.ceiling.c_str());
   if (!a.json.empty()) {
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
@@ -542,6 +569,9 @@ void RunEval(const EvalArgs& a) {
     j["class_bias"] = inf.class_bias;
     j["vote_exclude"] = pipeline::RfsClassListToString(inf.vote_exclude);
     j["inference"] = inf.ToString();
+    j["ceiling"] = a.ceiling;
+    j["ceiling_scenes"] = r.ceilings;
+    j["ceiling_points"] = r.ceiling_points;
     f << j.dump(2) << "\n";
   }
   if (a.render > 0) {
@@ -562,6 +592,7 @@ void SetupEval(CLI::App& app) {
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
+  AddCeilingFlag(app, &a->ceiling);
   app.callback([a]() { RunEval(*a); });
 }
 

@@ -1,5 +1,6 @@
 #include "tools/stage1_inference_args.h"
 
+#include "dimr/core/error.h"
 #include "dimr/pipeline/model_card.h"
 
 namespace dimr::tools {
@@ -25,6 +26,23 @@ pipeline::Stage1InferenceConfig ResolveInference(const InferenceArgs& a, std::st
   a.options->Apply(&c);
   c.Validate();
   return c;
+}
+
+void AddCeilingFlag(CLI::App& app, std::string* value) {
+  app.add_option("--ceiling", *value,
+                 "auto: drop a detected ceiling (the topmost large horizontal layer) before stage "
+                 "1, its points get no label | off")
+      ->capture_default_str();
+}
+
+pipeline::CeilingConfig CeilingFromFlag(const std::string& value) {
+  pipeline::CeilingConfig c;
+  if (value == "auto") return c;
+  if (value == "off") {
+    c.enabled = false;
+    return c;
+  }
+  throw InvalidArgument("--ceiling: expected auto or off, got '" + value + "'");
 }
 
 }  // namespace dimr::tools

@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "dimr/pipeline/ceiling.h"
 #include "dimr/pipeline/stage1_segmenter.h"
 #include "tools/config_options.h"
 
@@ -23,5 +24,11 @@ void AddInferenceFlags(CLI::App& app, InferenceArgs* a);
 // The model card's recommended_inference under the preset, overridden by the flags given;
 // `source` names where the settings came from.
 pipeline::Stage1InferenceConfig ResolveInference(const InferenceArgs& a, std::string* source);
+
+// `--ceiling auto|off` (pipeline/ceiling.h): remove a detected ceiling before stage 1.
+void AddCeilingFlag(CLI::App& app, std::string* value);
+// "auto" -> the default CeilingConfig, "off" -> disabled; anything else throws
+// dimr::InvalidArgument naming the flag.
+pipeline::CeilingConfig CeilingFromFlag(const std::string& value);
 
 }  // namespace dimr::tools

@@ -501,6 +501,45 @@ TEST(ScannerTest, RealismChangesColoursAndKeepsDefaultsOff) {
   EXPECT_STREQ(ScanDensityName(ScanDensity::kScanNet), "scannet");
 }
 
+TEST(ScannerTest, CeilingScansKeepTheCeilingAsIgnoredPoints) {
+  const Room& room = TestRoom();
+  int ceiling = -1;
+  for (std::size_t o = 0; o < room.objects.size(); ++o)
+    if (room.objects[o].role == ObjectRole::kCeiling) ceiling = static_cast<int>(o);
+  ASSERT_GE(ceiling, 0);
+  EXPECT_LT(room.objects[ceiling].rfs_class, 0);  // its points carry the ignore label
+  ScannerConfig c = SmallScanner();
+  c.frames = 12;
+  const ScanResult plain = ScanRoom(room, c, 4);
+  c.ceiling_probability = 0.0;  // the default: the ceiling only occludes
+  for (int o : plain.object) ASSERT_NE(o, ceiling);
+  c.ceiling_probability = 1.0;
+  const ScanResult with = ScanRoom(room, c, 4);
+  // Every 5th frame (look-up fraction 0.2) got an upward twin.
+  EXPECT_EQ(with.poses.size(), plain.poses.size() + (plain.poses.size() + 4) / 5);
+  int up = 0;
+  for (const auto& p : with.poses) up += p.linear().col(2).z() > 0.1;  // optical axis upward
+  EXPECT_GE(up, static_cast<int>(plain.poses.size() / 5));
+  std::size_t on_ceiling = 0;
+  for (std::size_t k = 0; k < with.points.size(); ++k) {
+    if (with.object[k] != ceiling) continue;
+    ++on_ceiling;
+    EXPECT_NEAR(with.points[k].z(), room.height, 0.06) << k;
+  }
+  std::printf("ceiling points: %zu of %zu\n", on_ceiling, with.points.size());
+  EXPECT_GT(on_ceiling, with.points.size() / 50);
+  // Deterministic, and a capped scan sees no ceiling.
+  const ScanResult again = ScanRoom(room, c, 4);
+  ASSERT_EQ(again.points.size(), with.points.size());
+  for (std::size_t k = 0; k < with.points.size(); ++k) ASSERT_EQ(again.points[k], with.points[k]);
+  c.height_cap_probability = 1.0;
+  c.height_cap_min = c.height_cap_max = 1.5;
+  for (int o : ScanRoom(room, c, 4).object) ASSERT_NE(o, ceiling);
+  c = SmallScanner();
+  c.ceiling_max_up_deg = 5;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
+}
+
 TEST(ScannerTest, RealFurnitureVertexColoursReachTheScan) {
   Room room = TestRoom();
   ScannerConfig c = SmallScanner();

@@ -92,6 +92,13 @@ struct ScannerConfig {
   double height_cap_probability = 0.0;
   double height_cap_min = 1.3;
   double height_cap_max = 1.9;
+  // Ceilings (real scans often hold part of the ceiling; SynthScan v1 never does): with this
+  // probability per scene the ceiling's returns are kept (label: ignore, like clutter) and a
+  // share ceiling_look_up_fraction of the frames gets a twin looking up by an angle drawn in
+  // [10, ceiling_max_up_deg] degrees. 0 = the ceiling is an occluder only.
+  double ceiling_probability = 0.0;
+  double ceiling_look_up_fraction = 0.2;
+  double ceiling_max_up_deg = 45.0;
   // Colour realism (0 / false = today's colours). Per scene: white balance = per-channel gain
   // exp(N(0, white_balance_jitter)), exposure gain exp(N(0, exposure_jitter)); per frame an
   // auto-exposure gain exp(N(0, frame_exposure_jitter)).
