@@ -3,6 +3,7 @@
 #include "dimr/ros/density_filter.h"
 
 #include "dimr/geometry/error.h"
+#include "dimr/pipeline/ceiling.h"
 #include "dimr/pipeline/voxel_downsample.h"
 
 namespace dimr::ros1 {
@@ -28,6 +29,35 @@ VoxelFilterStats VoxelMeanFilter(BackendCloud* cloud, double voxel_size) {
   cloud->normals = std::move(out.cloud.normals);
   stats.output_points = cloud->points.size();
   stats.applied = true;
+  return stats;
+}
+
+CeilingFilterStats CeilingFilter(BackendCloud* cloud) {
+  CeilingFilterStats stats;
+  const std::size_t n = cloud->points.size();
+  if (n == 0) return stats;
+  pipeline::PointCloudInput in;
+  in.name = cloud->name;
+  in.points = std::move(cloud->points);
+  if (cloud->colors.size() == n) in.colors = std::move(cloud->colors);
+  if (cloud->normals.size() == n) in.normals = std::move(cloud->normals);
+  pipeline::CeilingRemoval out;
+  try {
+    out = pipeline::RemoveCeiling(in, pipeline::CeilingConfig());
+  } catch (const InvalidArgument&) {
+    out.found = false;  // a non-finite point: the pipeline names it later
+  }
+  const bool found = out.found;
+  BackendCloud& target = *cloud;
+  pipeline::PointCloudInput& src = found ? out.cloud : in;
+  target.points = std::move(src.points);
+  if (!src.colors.empty()) target.colors = std::move(src.colors);
+  if (!src.normals.empty()) target.normals = std::move(src.normals);
+  if (found) {
+    stats.found = true;
+    stats.ceiling_z = out.ceiling_z;
+    stats.removed = out.removed;
+  }
   return stats;
 }
 

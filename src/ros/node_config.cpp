@@ -84,6 +84,9 @@ void DeclareNodeParams(NodeConfig* c, ParamTable* t) {
   t->AddDouble("input_voxel_size", &c->input_voxel_size, 0, 1, "m",
                "each occupied cell of this size becomes the mean of its points before "
                "reconstruction (stage 1's training density: 0.045); 0 = off");
+  t->AddBool("remove_ceiling", &c->remove_ceiling,
+             "drop a detected ceiling (topmost large horizontal layer) before stage 1, which "
+             "never saw one in training");
   t->AddVector3("crop_box/min", &c->crop_min, -kInf, kInf, "m",
                 "lower corner of the crop box in fixed_frame");
   t->AddVector3("crop_box/max", &c->crop_max, -kInf, kInf, "m",

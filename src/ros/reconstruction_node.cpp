@@ -392,7 +392,10 @@ void ReconstructionNode::Process(const Job& job) {
     input.normals = std::move(decoded.normals);
     input.name = "cloud '" + msg.header.frame_id + "' @ " + StampText(msg.header.stamp);
   }
-  // Bring the cloud to the density stage 1 was trained on (density_filter.h).
+  // No ceiling (stage 1 never saw one), then the density stage 1 was trained on
+  // (density_filter.h).
+  const CeilingFilterStats cf =
+      config_.remove_ceiling ? CeilingFilter(&input) : CeilingFilterStats();
   const VoxelFilterStats vf = VoxelMeanFilter(&input, config_.input_voxel_size);
   if (config_.input_voxel_size > 0 && !vf.applied)
     NoteIssue("cloud_warning", "input_voxel_size " + std::to_string(config_.input_voxel_size) +
@@ -401,6 +404,7 @@ void ReconstructionNode::Process(const Job& job) {
     std::lock_guard<std::mutex> slock(stats_mutex_);
     last_voxel_in_ = vf.input_points;
     last_voxel_out_ = vf.output_points;
+    last_ceiling_removed_ = cf.removed;
   }
   {
     std::lock_guard<std::mutex> lock(state_mutex_);
@@ -701,6 +705,7 @@ void ReconstructionNode::Diagnose(diagnostic_updater::DiagnosticStatusWrapper& s
   stat.add("processing_s", last_processing_);
   stat.add("voxel_input_points", last_voxel_in_);
   stat.add("voxel_output_points", last_voxel_out_);
+  stat.add("ceiling_removed_points", last_ceiling_removed_);
   stat.add("max_callback_ms", max_callback_ms_);
   stat.add("instances", instances_);
   stat.add("rss_mb", RssBytes() / 1048576.0);

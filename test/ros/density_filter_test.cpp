@@ -82,5 +82,50 @@ TEST(VoxelMeanFilter, LeavesTheCloudAloneWhenOffEmptyOrTooLarge) {
   EXPECT_EQ(s.output_points, 3u);
 }
 
+// A 3 x 3 m room: floor, four walls to 2.5 m, a ceiling at 2.5 m (2 cm grid); colours encode
+// the height so that their alignment with the points can be checked after the filter.
+BackendCloud RoomWithCeiling(bool ceiling) {
+  BackendCloud c;
+  c.name = "room";
+  auto add = [&](float x, float y, float z) {
+    c.points.emplace_back(x, y, z);
+    c.colors.emplace_back(z / 2.5f, 0.5f, 0.5f);
+  };
+  for (int i = 0; i <= 150; ++i) {
+    for (int j = 0; j <= 150; ++j) {
+      add(0.02f * i, 0.02f * j, 0.f);
+      if (ceiling) add(0.02f * i, 0.02f * j, 2.5f);
+    }
+    for (int k = 1; k < 125; ++k) {
+      const float t = 0.02f * i, z = 0.02f * k;
+      add(t, 0.f, z), add(t, 3.f, z), add(0.f, t, z), add(3.f, t, z);
+    }
+  }
+  return c;
+}
+
+TEST(CeilingFilter, DropsTheCeilingAndKeepsColoursAligned) {
+  BackendCloud c = RoomWithCeiling(true);
+  const std::size_t n = c.points.size();
+  const CeilingFilterStats s = CeilingFilter(&c);
+  ASSERT_TRUE(s.found);
+  EXPECT_NEAR(s.ceiling_z, 2.5, 0.01);
+  EXPECT_GE(s.removed, 151u * 151u);  // the ceiling and the walls' top 3 cm
+  EXPECT_EQ(c.points.size(), n - s.removed);
+  ASSERT_EQ(c.colors.size(), c.points.size());
+  for (std::size_t i = 0; i < c.points.size(); ++i) {
+    EXPECT_LT(c.points[i].z(), 2.47f);
+    EXPECT_FLOAT_EQ(c.colors[i].x(), c.points[i].z() / 2.5f);
+  }
+  // Without a ceiling, or empty: unchanged.
+  BackendCloud open = RoomWithCeiling(false);
+  const std::size_t m = open.points.size();
+  EXPECT_FALSE(CeilingFilter(&open).found);
+  EXPECT_EQ(open.points.size(), m);
+  EXPECT_EQ(open.colors.size(), m);
+  BackendCloud empty;
+  EXPECT_FALSE(CeilingFilter(&empty).found);
+}
+
 }  // namespace
 }  // namespace dimr::ros1

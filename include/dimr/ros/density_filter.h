@@ -28,4 +28,15 @@ struct VoxelFilterStats {
 // Expects finite coordinates.
 VoxelFilterStats VoxelMeanFilter(BackendCloud* cloud, double voxel_size);
 
+// Ceiling removal before stage 1 (pipeline::RemoveCeiling, docs/real.md "Ceilings"): a robot's
+// map holds the ceiling, which stage 1 never saw in training and turns into furniture. Drops
+// the ceiling's points from `cloud` when one is found (`remove_ceiling` parameter). Leaves the
+// cloud as it is when it is empty or malformed (the pipeline reports that later).
+struct CeilingFilterStats {
+  bool found = false;
+  double ceiling_z = 0;  // m in the cloud's frame when found
+  std::size_t removed = 0;
+};
+CeilingFilterStats CeilingFilter(BackendCloud* cloud);
+
 }  // namespace dimr::ros1

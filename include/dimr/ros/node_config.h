@@ -55,6 +55,7 @@ struct NodeConfig {
   double min_process_interval = 0.0;       // s between processed clouds (message time)
   int max_input_points = 2000000;          // larger clouds are subsampled (uniform stride)
   double input_voxel_size = pipeline::kTrainingVoxelSize;  // m, voxel-mean filter (0 = off)
+  bool remove_ceiling = true;  // drop a detected ceiling before stage 1 (pipeline/ceiling.h)
   std::array<double, 3> crop_min = {-1000, -1000, -1000};  // m in fixed_frame
   std::array<double, 3> crop_max = {1000, 1000, 1000};
   double max_publish_rate = 2.0;  // Hz, markers / scene publication cap

@@ -152,6 +152,7 @@ class ReconstructionNode {
   std::string last_issue_;
   double last_latency_ = 0, last_processing_ = 0, max_callback_ms_ = 0;
   std::size_t last_voxel_in_ = 0, last_voxel_out_ = 0;  // input_voxel_size filter
+  std::size_t last_ceiling_removed_ = 0;                // remove_ceiling: points dropped
   std::deque<double> arrival_times_;  // wall seconds of the last clouds (input rate)
   std::size_t instances_ = 0, map_scans_ = 0, map_leaves_ = 0, map_bytes_ = 0;
   std::string mode_text_;
