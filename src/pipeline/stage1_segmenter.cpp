@@ -12,6 +12,7 @@
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/class_bias.h"
 #include "dimr/pipeline/model_card.h"
+#include "dimr/pipeline/wall_planes.h"
 
 namespace dimr::pipeline {
 
@@ -247,6 +248,19 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 },
                 nullptr,  // Parse checks every value
                 [](const C& c) { return c.colour_norm; }})
+          .Flag(
+              "wall_planes", [](C& c) -> bool& { return c.wall_planes; },
+              "structure prior: points on large vertical planes that bound the scan, labelled "
+              "as a class that never forms one (chair, curtain, ...), become wall")
+          .WrittenIf([](const C& c) { return c.wall_planes != d.wall_planes; })
+          .Number(
+              "wall_plane_area", [](C& c) -> double& { return c.wall_plane_area; }, "m2",
+              "smallest wall plane of the structure prior", 0.1, 1000.0)
+          .WrittenIf([](const C& c) { return c.wall_plane_area != d.wall_plane_area; })
+          .Number(
+              "wall_plane_distance", [](C& c) -> double& { return c.wall_plane_distance; }, "m",
+              "points this close to a wall plane are on it", 0.005, 0.5)
+          .WrittenIf([](const C& c) { return c.wall_plane_distance != d.wall_plane_distance; })
           .Number(
               "scene_norm", [](C& c) -> double& { return c.scene_norm; }, "",
               "test-time adaptation: the U-Net's BatchNorm layers normalise with this blend of "
@@ -510,6 +524,13 @@ void Stage1Segmenter::FinishLabels(const std::vector<Eigen::Vector3f>& points,
       r->semantic = VoteSemantics(points, r->offsets, r->semantic, r->semantic_prob, is_thing,
                                   config.InstanceConfig().semantic_vote, r->point_row);
     }
+  }
+  if (config.wall_planes) {
+    ScopedTimer t(&r->timings, "wall_planes");
+    WallPlaneConfig wall;
+    wall.min_area = config.wall_plane_area;
+    wall.distance = config.wall_plane_distance;
+    ApplyWallPlanes(points, wall, &r->semantic);
   }
   r->cad_label.resize(r->semantic.size());
   for (std::size_t i = 0; i < r->semantic.size(); ++i) r->cad_label[i] = rfs_to_cad[r->semantic[i]];

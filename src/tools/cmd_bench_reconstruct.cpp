@@ -89,7 +89,7 @@ const std::vector<std::pair<std::string, std::vector<std::string>>>& Stages() {
       {"voxelise", {"stage1.voxelize", "stage1.kernel_maps"}},
       {"unet", {"stage1.unet"}},
       {"heads", {"stage1.heads"}},
-      {"vote", {"stage1.class_bias", "stage1.vote"}},
+      {"vote", {"stage1.class_bias", "stage1.vote", "stage1.wall_planes"}},
       {"clustering", {"stage1.clustering"}},
       {"stage2", {"stage2"}},
       {"decode", {"decode", "pool"}},

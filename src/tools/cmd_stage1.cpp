@@ -144,8 +144,9 @@ Stage1EvalRun EvaluateScenes(const pipeline::Stage1Segmenter& segmenter,
       r = segmenter.Segment(InputOf(s));
     }
     run.network_s += r.timings.ms("network") / 1e3;
-    run.cluster_s +=
-        (r.timings.ms("class_bias") + r.timings.ms("vote") + r.timings.ms("clustering")) / 1e3;
+    run.cluster_s += (r.timings.ms("class_bias") + r.timings.ms("vote") +
+                      r.timings.ms("wall_planes") + r.timings.ms("clustering")) /
+                     1e3;
     eval::Stage1SceneEval e;
     e.gt_semantic = s.semantic;
     e.gt_instance = s.instance;
@@ -786,6 +787,7 @@ void RunBench(const BenchArgs& a) {
       {"heads", "heads (+ batch build, softmax, copy-out, TTA averaging)"},
       {"class_bias", "class bias"},
       {"vote", "semantic vote"},
+      {"wall_planes", "wall planes (structure prior)"},
       {"clustering", "clustering (" + std::to_string(inf.passes.size()) + " passes) + NMS"},
       {"total", "total"}};
   std::vector<std::vector<double>> ms(rows.size());

@@ -80,6 +80,12 @@ struct Stage1InferenceConfig {
   // outside the training rooms' range is mapped to the nearest in-range statistics (text
   // "colour_norm=<12 values>", `dimr stage1 colour-stats`); off when colour_norm is false.
   bool colour_norm = false;
+  // Structure prior (wall_planes.h): points on large vertical planes bounding the scan whose
+  // label is a class that never forms one (chair, curtain, ...) become wall; text
+  // "wall_planes=1", "wall_plane_area=2" (m², the smallest wall). Off by default.
+  bool wall_planes = false;
+  double wall_plane_area = 2.0;
+  double wall_plane_distance = 0.03;  // m, "wall_plane_distance": points this close are on it
   ColourRange colour_range;
   // Test-time adaptation of the U-Net's normalisation to the scene (text "scene_norm=w", w in
   // [0, 1]): every network pass normalises with (1 - w) x the training statistics + w x its
