@@ -9,6 +9,7 @@
 
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
+#include "dimr/core/parallel.h"
 #include "dimr/geometry/kdtree.h"
 
 namespace dimr::pipeline {
@@ -20,6 +21,7 @@ constexpr double kMaxNormalZ = 0.26;   // candidates: normal within ~15 deg of h
 constexpr double kMaxFlatness = 0.03;  // smallest eigenvalue share of a flat patch
 constexpr double kNormalCos = 0.9;     // inlier normal within ~25 deg of the plane's
 constexpr std::size_t kScoreSample = 3000;
+constexpr double kSample = 0.06;  // m, one normal per cell of this edge for the plane search
 
 std::int64_t CellKey(double u, double z) {
   const auto iu = static_cast<std::int64_t>(std::floor(u / kCell));
@@ -84,14 +86,13 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
   WallPlaneResult result;
   if (n < static_cast<std::size_t>(config.neighbours) + 1) return result;
 
-  // 1. Normals of locally flat, vertical surface patches.
+  // 1. Normals of locally flat, vertical surface patches, at one representative point per
+  // kSample cell (the first in input order; the neighbours come from the whole cloud).
   std::vector<geometry::Vec3> xyz(n);
   for (std::size_t i = 0; i < n; ++i) xyz[i] = points[i].cast<double>();
   const geometry::KdTree tree(xyz);
-  std::vector<Eigen::Vector2f> normal(n, Eigen::Vector2f::Zero());   // candidates: unit
-  std::vector<Eigen::Vector3f> normal3(n, Eigen::Vector3f::Zero());  // every point
-  std::vector<int> candidates;
-  for (std::size_t i = 0; i < n; ++i) {
+  // PCA normal of point i's neighbourhood and the smallest eigenvalue's share (-1: degenerate).
+  auto pca = [&](std::size_t i, Eigen::Vector3f* nr) {
     const auto nb = tree.KNearest(xyz[i], config.neighbours);
     Eigen::Vector3d mean = Eigen::Vector3d::Zero();
     for (const auto& [j, dist] : nb) mean += xyz[j];
@@ -102,15 +103,39 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
       cov += d * d.transpose();
     }
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    const Eigen::Vector3d ev = eig.eigenvalues();
-    const double sum = ev.sum();
-    if (!(sum > 0)) continue;
-    const Eigen::Vector3d nr = eig.eigenvectors().col(0);
-    normal3[i] = nr.cast<float>();
-    if (std::abs(nr.z()) > kMaxNormalZ || ev(0) / sum > kMaxFlatness) continue;
-    normal[i] = Eigen::Vector2f(nr.x(), nr.y()).normalized();
-    candidates.push_back(static_cast<int>(i));
+    const double sum = eig.eigenvalues().sum();
+    if (!(sum > 0)) return -1.0;
+    *nr = eig.eigenvectors().col(0).cast<float>();
+    return eig.eigenvalues()(0) / sum;
+  };
+  std::vector<int> reps;
+  {
+    std::unordered_set<std::int64_t> seen;
+    seen.reserve(n / 2 + 1);
+    for (std::size_t i = 0; i < n; ++i) {
+      const auto ix = static_cast<std::int64_t>(std::floor(points[i].x() / kSample));
+      const auto iy = static_cast<std::int64_t>(std::floor(points[i].y() / kSample));
+      const auto iz = static_cast<std::int64_t>(std::floor(points[i].z() / kSample));
+      const std::uint64_t key = (static_cast<std::uint64_t>(ix & 0x1fffff) << 42) |
+                                (static_cast<std::uint64_t>(iy & 0x1fffff) << 21) |
+                                static_cast<std::uint64_t>(iz & 0x1fffff);
+      if (seen.insert(static_cast<std::int64_t>(key)).second) reps.push_back(static_cast<int>(i));
+    }
   }
+  std::vector<Eigen::Vector2f> normal(n, Eigen::Vector2f::Zero());  // candidates: unit
+  std::vector<char> is_candidate(reps.size(), 0);
+  ParallelRanges(reps.size(), 0, 512, [&](std::size_t b, std::size_t e) {
+    for (std::size_t r = b; r < e; ++r) {
+      Eigen::Vector3f nr;
+      const double flat = pca(static_cast<std::size_t>(reps[r]), &nr);
+      if (flat < 0 || flat > kMaxFlatness || std::abs(nr.z()) > kMaxNormalZ) continue;
+      normal[reps[r]] = Eigen::Vector2f(nr.x(), nr.y()).normalized();
+      is_candidate[r] = 1;
+    }
+  });
+  std::vector<int> candidates;
+  for (std::size_t r = 0; r < reps.size(); ++r)
+    if (is_candidate[r]) candidates.push_back(reps[r]);
 
   // 2.-4. Sequential RANSAC for vertical planes.
   std::mt19937_64 rng(config.seed);
@@ -201,10 +226,11 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
     for (std::size_t i = 0; i < n; ++i) {
       if (!WallPlaneOverrides((*semantic)[i])) continue;
       if (std::abs(best.Distance(points[i])) > config.distance) continue;
-      // Part of the plane's surface, not an object touching it (a bin's curved side).
-      const Eigen::Vector3f& pn = normal3[i];
-      if (std::abs(pn.x() * best.n.x() + pn.y() * best.n.y()) < kNormalCos) continue;
       if (!grown.count(CellKey(best.U(points[i]), points[i].z()))) continue;
+      // Part of the plane's surface, not an object touching it (a bin's curved side).
+      Eigen::Vector3f pn;
+      if (pca(i, &pn) < 0) continue;
+      if (std::abs(pn.x() * best.n.x() + pn.y() * best.n.y()) < kNormalCos) continue;
       (*semantic)[i] = labels::kWall;
       ++result.relabelled;
     }
