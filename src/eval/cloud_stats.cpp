@@ -1,6 +1,5 @@
 #include "dimr/eval/cloud_stats.h"
 
-#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -141,21 +140,13 @@ std::vector<PointShape> PointShapes(const std::vector<geometry::Vec3>& points, i
           break;
         }
       }
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (const auto& [idx, dd] : nn) mean += points[idx];
-      mean /= static_cast<double>(nn.size());
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (const auto& [idx, dd] : nn) {
-        const Eigen::Vector3d d = points[idx] - mean;
-        cov += d * d.transpose();
-      }
-      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
-      const Eigen::Vector3d lam = es.eigenvalues().cwiseMax(0.0);  // ascending
+      const geometry::NeighbourhoodPca pca = geometry::PcaOfNeighbours(points, nn);
+      const Eigen::Vector3d lam = pca.eigenvalues.cwiseMax(0.0);  // ascending
       const double sum = lam.sum();
       PointShape& s = out[i];
       s.spacing = std::sqrt(d2);
       s.surface_variation = sum > 0.0 ? lam(0) / sum : 0.0;
-      const Eigen::Vector3d n = es.eigenvectors().col(0);
+      const Eigen::Vector3d n = pca.normal;
       const double c = std::min(1.0, std::abs(n.z()));
       s.normal_angle_deg = std::acos(c) * 180.0 / M_PI;
     }

@@ -1,5 +1,6 @@
 #include "dimr/geometry/kdtree.h"
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <climits>
 #include <cmath>
@@ -189,6 +190,25 @@ std::vector<double> NearestDistances(const std::vector<Vec3>& queries, const KdT
   };
   constexpr std::size_t kMinChunk = 2048;
   ParallelRanges(queries.size(), 0, kMinChunk, work);
+  return out;
+}
+
+NeighbourhoodPca PcaOfNeighbours(const std::vector<Vec3>& points,
+                                 const std::vector<std::pair<int, double>>& neighbours) {
+  NeighbourhoodPca out;
+  if (neighbours.empty()) return out;
+  Vec3 mean = Vec3::Zero();
+  for (const auto& [j, d2] : neighbours) mean += points[static_cast<std::size_t>(j)];
+  mean /= static_cast<double>(neighbours.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& [j, d2] : neighbours) {
+    const Vec3 e = points[static_cast<std::size_t>(j)] - mean;
+    cov += e * e.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
+  out.eigenvalues = eig.eigenvalues();
+  out.normal = eig.eigenvectors().col(0);
+  out.ok = neighbours.size() >= 3 && eig.info() == Eigen::Success && out.normal.allFinite();
   return out;
 }
 

@@ -1,6 +1,5 @@
 #include "dimr/pipeline/icp.h"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <cmath>
@@ -78,20 +77,9 @@ class TargetNormals {
     const std::size_t u = static_cast<std::size_t>(j);
     if (!done_[u]) {
       done_[u] = 1;
-      const auto nn = tree_.KNearest(tree_.points()[u], 8);
-      geometry::Vec3 mean = geometry::Vec3::Zero();
-      for (const auto& [k, d2] : nn) mean += tree_.points()[static_cast<std::size_t>(k)];
-      mean /= static_cast<double>(nn.size());
-      Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-      for (const auto& [k, d2] : nn) {
-        const geometry::Vec3 e = tree_.points()[static_cast<std::size_t>(k)] - mean;
-        cov += e * e.transpose();
-      }
-      const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-      normals_[u] = nn.size() >= 3 && eig.info() == Eigen::Success
-                        ? geometry::Vec3(eig.eigenvectors().col(0))
-                        : geometry::Vec3::Zero();
-      if (!normals_[u].allFinite()) normals_[u].setZero();
+      const geometry::NeighbourhoodPca pca =
+          geometry::PcaOfNeighbours(tree_.points(), tree_.KNearest(tree_.points()[u], 8));
+      normals_[u] = pca.ok ? pca.normal : geometry::Vec3::Zero();
     }
     return normals_[u];
   }

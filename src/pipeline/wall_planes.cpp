@@ -93,21 +93,14 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
   const geometry::KdTree tree(xyz);
   // PCA normal of point i's neighbourhood and the smallest eigenvalue's share (-1: degenerate).
   auto pca = [&](std::size_t i, Eigen::Vector3f* nr) {
-    const auto nb = tree.KNearest(xyz[i], config.neighbours);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& [j, dist] : nb) mean += xyz[j];
-    mean /= static_cast<double>(nb.size());
-    Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (const auto& [j, dist] : nb) {
-      const Eigen::Vector3d d = xyz[j] - mean;
-      cov += d * d.transpose();
-    }
-    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
-    const double sum = eig.eigenvalues().sum();
-    if (!(sum > 0)) return -1.0;
-    *nr = eig.eigenvectors().col(0).cast<float>();
-    return eig.eigenvalues()(0) / sum;
+    const geometry::NeighbourhoodPca p =
+        geometry::PcaOfNeighbours(xyz, tree.KNearest(xyz[i], config.neighbours));
+    const double sum = p.eigenvalues.sum();
+    if (!p.ok || !(sum > 0)) return -1.0;
+    *nr = p.normal.cast<float>();
+    return p.eigenvalues(0) / sum;
   };
+
   std::vector<int> reps;
   {
     std::unordered_set<std::int64_t> seen;

@@ -57,4 +57,16 @@ class KdTree {
 // (+inf if the target is empty). Parallel over chunks of queries (dimr::ParallelRanges).
 std::vector<double> NearestDistances(const std::vector<Vec3>& queries, const KdTree& target);
 
+// Principal components of a neighbourhood (points[i] for every index of `neighbours`, e.g.
+// KdTree::KNearest's answer): eigenvalues of its covariance in ascending order and the unit
+// eigenvector of the smallest (a surface normal, up to sign). `ok` is false for fewer than 3
+// points or a failed solve (the fields are then what the solver gave, or zero).
+struct NeighbourhoodPca {
+  Vec3 eigenvalues = Vec3::Zero();
+  Vec3 normal = Vec3::Zero();
+  bool ok = false;
+};
+NeighbourhoodPca PcaOfNeighbours(const std::vector<Vec3>& points,
+                                 const std::vector<std::pair<int, double>>& neighbours);
+
 }  // namespace dimr::geometry
