@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "dimr/core/error.h"
 
@@ -110,27 +111,26 @@ CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& 
     int n = 0, low = 0;  // low: points lower than z_c - edge
   };
   std::unordered_map<std::int64_t, Acc> layer;
-  std::unordered_map<std::int64_t, char> footprint;
+  std::unordered_set<std::int64_t> footprint;
   layer.reserve(n / 16 + 1);
   footprint.reserve(n / 16 + 1);
   for (const auto& p : input.points) {
     const std::int64_t key = CellKey(p.x(), p.y(), config.cell);
-    footprint.emplace(key, 1);
+    footprint.insert(key);
     const double d = p.z() - zc;
     if (std::abs(d) > config.band) continue;
     Acc& a = layer[key];
     a.s += d, a.s2 += d * d, ++a.n;
     if (d < -config.edge) ++a.low;
   }
-  std::unordered_map<std::int64_t, char> flat_cells;
+  std::unordered_set<std::int64_t> flat_cells;
   for (const auto& kv : layer) {
     const Acc& a = kv.second;
     if (a.n < 3) continue;
     const double mean = a.s / a.n;
     const double var = std::max(0.0, a.s2 / a.n - mean * mean);
     // Flat, and not a wall's column under the ceiling's rim (whose points spread below it).
-    if (std::sqrt(var) < config.max_cell_z_std && a.low * 10 <= a.n)
-      flat_cells.emplace(kv.first, 1);
+    if (std::sqrt(var) < config.max_cell_z_std && a.low * 10 <= a.n) flat_cells.insert(kv.first);
   }
   const double cell_area = config.cell * config.cell;
   out.area = static_cast<double>(flat_cells.size()) * cell_area;

@@ -131,17 +131,15 @@ Stage1EvalRun EvaluateScenes(const pipeline::Stage1Segmenter& segmenter,
   Stage1EvalRun run;
   eval::Stage1MetricsAccumulator acc(nn::kStage1Classes, data::kNumCadClasses);
   for (const auto& s : scenes) {
-    pipeline::Stage1Result r;
+    // cut.cloud is the scene itself when no ceiling is found.
     const pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(InputOf(s), ceiling);
+    pipeline::Stage1Result r = segmenter.Segment(cut.cloud);
     if (cut.found) {
-      r = segmenter.Segment(cut.cloud);
       r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, s.points.size(), -1);
       for (auto& inst : r.instances)
         inst.points = pipeline::ExpandKeptPoints(inst.points, cut.kept);
       ++run.ceilings;
       run.ceiling_points += cut.removed;
-    } else {
-      r = segmenter.Segment(InputOf(s));
     }
     run.network_s += r.timings.ms("network") / 1e3;
     run.cluster_s += (r.timings.ms("class_bias") + r.timings.ms("vote") +
