@@ -11,6 +11,7 @@
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
 #include "dimr/core/parallel.h"
+#include "dimr/geometry/grid_key.h"
 #include "dimr/geometry/kdtree.h"
 
 namespace dimr::eval {
@@ -26,14 +27,9 @@ std::size_t Occupied(const std::vector<geometry::Vec3>& points, double voxel) {
   std::unordered_set<std::uint64_t> cells;
   cells.reserve(points.size());
   for (const auto& p : points) {
-    const std::int64_t x = static_cast<std::int64_t>(std::floor(p.x() / voxel));
-    const std::int64_t y = static_cast<std::int64_t>(std::floor(p.y() / voxel));
-    const std::int64_t z = static_cast<std::int64_t>(std::floor(p.z() / voxel));
-    // 21 bits per axis (+-1e6 cells: 10 km at 5 mm) is plenty for a room.
-    const std::uint64_t key = (static_cast<std::uint64_t>(x + (1 << 20)) & 0x1fffff) |
-                              ((static_cast<std::uint64_t>(y + (1 << 20)) & 0x1fffff) << 21) |
-                              ((static_cast<std::uint64_t>(z + (1 << 20)) & 0x1fffff) << 42);
-    cells.insert(key);
+    // 21 bits per axis (2^21 cells: 10 km at 5 mm) is plenty for a room.
+    cells.insert(geometry::PackCell3(geometry::CellOf(p.x(), voxel), geometry::CellOf(p.y(), voxel),
+                                     geometry::CellOf(p.z(), voxel)));
   }
   return cells.size();
 }

@@ -8,6 +8,7 @@
 #include <unordered_map>
 
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/grid_key.h"
 
 namespace dimr::geometry {
 namespace {
@@ -16,14 +17,6 @@ namespace {
 // unlike std::uniform_real_distribution).
 inline double Uniform01(std::mt19937_64& rng) {
   return static_cast<double>(rng() >> 11) * (1.0 / 9007199254740992.0);
-}
-
-// Packs integer cell coordinates into one hash key (wrapping is harmless: colliding cells
-// only add candidates, distances are always checked).
-inline std::uint64_t CellKey(std::int64_t x, std::int64_t y, std::int64_t z) {
-  const std::uint64_t m = (1ULL << 21) - 1;
-  return (static_cast<std::uint64_t>(x) & m) | ((static_cast<std::uint64_t>(y) & m) << 21) |
-         ((static_cast<std::uint64_t>(z) & m) << 42);
 }
 
 }  // namespace
@@ -114,7 +107,8 @@ SurfaceSamples SampleSurfaceEven(const TriangleMesh& mesh, std::size_t n, std::u
     for (std::int64_t dz = -1; dz <= 1 && !close; ++dz) {
       for (std::int64_t dy = -1; dy <= 1 && !close; ++dy) {
         for (std::int64_t dx = -1; dx <= 1 && !close; ++dx) {
-          const auto it = cells.find(CellKey(cx + dx, cy + dy, cz + dz));
+          // Keys wrap modulo 2^21 per axis: colliding cells only add candidates.
+          const auto it = cells.find(PackCell3(cx + dx, cy + dy, cz + dz));
           if (it == cells.end()) continue;
           for (std::size_t k : it->second) {
             if ((out.points[k] - p).squaredNorm() < r2) {
@@ -126,7 +120,7 @@ SurfaceSamples SampleSurfaceEven(const TriangleMesh& mesh, std::size_t n, std::u
       }
     }
     if (close) continue;
-    cells[CellKey(cx, cy, cz)].push_back(out.points.size());
+    cells[PackCell3(cx, cy, cz)].push_back(out.points.size());
     out.points.push_back(p);
     out.normals.push_back(cand.normals[i]);
     out.face_index.push_back(cand.face_index[i]);

@@ -8,13 +8,10 @@
 #include <unordered_set>
 
 #include "dimr/core/error.h"
+#include "dimr/geometry/grid_key.h"
 
 namespace dimr::pipeline {
 namespace {
-
-std::string Who(const PointCloudInput& c) {
-  return "ceiling removal of '" + (c.name.empty() ? std::string("point cloud") : c.name) + "'";
-}
 
 // The q-quantile of `values` (nearest rank; values is reordered).
 float Quantile(std::vector<float>* values, double q) {
@@ -26,10 +23,7 @@ float Quantile(std::vector<float>* values, double q) {
 }
 
 std::int64_t CellKey(float x, float y, double cell) {
-  const auto ix = static_cast<std::int64_t>(std::floor(x / cell));
-  const auto iy = static_cast<std::int64_t>(std::floor(y / cell));
-  return static_cast<std::int64_t>((static_cast<std::uint64_t>(ix) << 32) ^
-                                   static_cast<std::uint32_t>(iy));
+  return geometry::PackCell2(geometry::CellOf(x, cell), geometry::CellOf(y, cell));
 }
 
 }  // namespace
@@ -51,35 +45,20 @@ void CeilingConfig::Validate() const {
   need(min_area_fraction >= 0 && min_area_fraction <= 1, "min_area_fraction must be in [0, 1]");
 }
 
-CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& config) {
-  config.Validate();
-  const std::string who = Who(input);
-  const std::size_t n = input.points.size();
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!input.points[i].allFinite())
-      throw InvalidArgument(who + ": point " + std::to_string(i) + " is not finite");
-  }
-  if (input.has_colors() && input.colors.size() != n)
-    throw InvalidArgument(who + ": " + std::to_string(input.colors.size()) + " colours for " +
-                          std::to_string(n) + " points");
-  if (input.has_normals() && input.normals.size() != n)
-    throw InvalidArgument(who + ": " + std::to_string(input.normals.size()) + " normals for " +
-                          std::to_string(n) + " points");
-  CeilingRemoval out;
-  auto keep_all = [&]() {
-    out.cloud = input;
-    out.kept.resize(n);
-    for (std::size_t i = 0; i < n; ++i) out.kept[i] = static_cast<int>(i);
-    return out;
-  };
-  if (!config.enabled || n == 0) return keep_all();
+namespace {
 
+// Steps 1-3 of the rule (header): fills floor_z / ceiling_z / area / found of *out and, when a
+// ceiling is found, the layer's flat cells. The input is already validated.
+void FindCeiling(const PointCloudInput& input, const CeilingConfig& config, CeilingRemoval* out,
+                 std::unordered_set<std::int64_t>* flat_cells) {
+  const std::size_t n = input.points.size();
+  if (!config.enabled || n == 0) return;
   std::vector<float> z(n);
   for (std::size_t i = 0; i < n; ++i) z[i] = input.points[i].z();
-  out.floor_z = Quantile(&z, config.floor_quantile);
+  out->floor_z = Quantile(&z, config.floor_quantile);
   const float top = Quantile(&z, config.top_quantile);
-  const double low = out.floor_z + config.min_height;
-  if (top < low) return keep_all();
+  const double low = out->floor_z + config.min_height;
+  if (top < low) return;
 
   // 2. The densest layer above floor + min_height (three bins summed).
   const int bins = static_cast<int>(std::ceil((top + config.band - low) / config.bin)) + 1;
@@ -94,7 +73,7 @@ CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& 
     const std::size_t c = hist[b - 1] + hist[b] + hist[b + 1];
     if (c > best_count) best_count = c, best = b;
   }
-  if (best_count == 0) return keep_all();
+  if (best_count == 0) return;
   const double peak = low + (static_cast<double>(best) - 0.5) * config.bin;
   double sum = 0;
   std::size_t count = 0;
@@ -102,9 +81,9 @@ CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& 
     if (std::abs(p.z() - peak) <= config.bin) sum += p.z(), ++count;
   }
   const double zc = count > 0 ? sum / static_cast<double>(count) : peak;
-  out.ceiling_z = zc;
+  out->ceiling_z = zc;
   // 3a. The top of the cloud.
-  if (top > zc + config.top_margin) return keep_all();
+  if (top > zc + config.top_margin) return;
   // 3b. Horizontal, large: per x-y cell the z spread of the layer's points.
   struct Acc {
     double s = 0, s2 = 0;
@@ -123,40 +102,70 @@ CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& 
     a.s += d, a.s2 += d * d, ++a.n;
     if (d < -config.edge) ++a.low;
   }
-  std::unordered_set<std::int64_t> flat_cells;
   for (const auto& kv : layer) {
     const Acc& a = kv.second;
     if (a.n < 3) continue;
     const double mean = a.s / a.n;
     const double var = std::max(0.0, a.s2 / a.n - mean * mean);
     // Flat, and not a wall's column under the ceiling's rim (whose points spread below it).
-    if (std::sqrt(var) < config.max_cell_z_std && a.low * 10 <= a.n) flat_cells.insert(kv.first);
+    if (std::sqrt(var) < config.max_cell_z_std && a.low * 10 <= a.n) flat_cells->insert(kv.first);
   }
   const double cell_area = config.cell * config.cell;
-  out.area = static_cast<double>(flat_cells.size()) * cell_area;
+  out->area = static_cast<double>(flat_cells->size()) * cell_area;
   const double footprint_area = static_cast<double>(footprint.size()) * cell_area;
-  if (out.area < config.min_area || out.area < config.min_area_fraction * footprint_area)
-    return keep_all();
+  out->found =
+      out->area >= config.min_area && out->area >= config.min_area_fraction * footprint_area;
+}
+
+}  // namespace
+
+CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& config) {
+  config.Validate();  // before the copy: nothing to do for a bad configuration
+  return RemoveCeiling(PointCloudInput(input), config);
+}
+
+CeilingRemoval RemoveCeiling(PointCloudInput&& input, const CeilingConfig& config) {
+  config.Validate();
+  try {
+    input.ValidateShape();
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument("ceiling removal: " + std::string(e.what()));
+  }
+  CeilingRemoval out;
+  std::unordered_set<std::int64_t> flat_cells;
+  FindCeiling(input, config, &out, &flat_cells);
+  const std::size_t n = input.points.size();
+  if (!out.found) {
+    out.kept.resize(n);
+    for (std::size_t i = 0; i < n; ++i) out.kept[i] = static_cast<int>(i);
+    out.cloud = std::move(input);
+    return out;
+  }
 
   // 4. Drop the layer in its flat cells, the top `edge` of it elsewhere (where walls meet the
-  // ceiling: the walls stay up to just below it), and everything above it.
-  out.found = true;
-  out.cloud.name = input.name;
+  // ceiling: the walls stay up to just below it), and everything above it. In place: the
+  // kept points move to the front.
+  const double zc = out.ceiling_z;
+  const bool colours = input.has_colors(), normals = input.has_normals();
+  std::size_t w = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3f& p = input.points[i];
+    const Eigen::Vector3f p = input.points[i];
     const double d = p.z() - zc;
     const bool ceiling =
         d > config.band || d >= -config.edge ||
         (d >= -config.band && flat_cells.count(CellKey(p.x(), p.y(), config.cell)) > 0);
-    if (ceiling) {
-      ++out.removed;
-      continue;
-    }
+    if (ceiling) continue;
     out.kept.push_back(static_cast<int>(i));
-    out.cloud.points.push_back(input.points[i]);
-    if (input.has_colors()) out.cloud.colors.push_back(input.colors[i]);
-    if (input.has_normals()) out.cloud.normals.push_back(input.normals[i]);
+    input.points[w] = p;
+    if (colours) input.colors[w] = input.colors[i];
+    if (normals) input.normals[w] = input.normals[i];
+    ++w;
   }
+  out.removed = n - w;
+  input.points.resize(w);
+  if (colours) input.colors.resize(w);
+  if (normals) input.normals.resize(w);
+  out.cloud = std::move(input);
   return out;
 }
 

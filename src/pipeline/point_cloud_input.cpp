@@ -6,9 +6,14 @@
 
 namespace dimr::pipeline {
 
-void PointCloudInput::Validate() const {
-  const std::string who = "point cloud" + (name.empty() ? std::string() : " '" + name + "'");
-  if (points.empty()) throw InvalidArgument(who + " has no points");
+namespace {
+std::string Who(const std::string& name) {
+  return "point cloud" + (name.empty() ? std::string() : " '" + name + "'");
+}
+}  // namespace
+
+void PointCloudInput::ValidateShape() const {
+  const std::string who = Who(name);
   const std::size_t n = points.size();
   if (!colors.empty() && colors.size() != n) {
     throw InvalidArgument(who + ": " + std::to_string(colors.size()) + " colours for " +
@@ -23,6 +28,12 @@ void PointCloudInput::Validate() const {
       throw InvalidArgument(who + ": point " + std::to_string(i) + " is not finite");
     }
   }
+}
+
+void PointCloudInput::Validate() const {
+  const std::string who = Who(name);
+  if (points.empty()) throw InvalidArgument(who + " has no points");
+  ValidateShape();
   for (std::size_t i = 0; i < colors.size(); ++i) {
     const Eigen::Vector3f& c = colors[i];
     if (!c.allFinite() || c.minCoeff() < 0.0f || c.maxCoeff() > 1.0f) {

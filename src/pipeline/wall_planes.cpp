@@ -10,6 +10,7 @@
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
 #include "dimr/core/parallel.h"
+#include "dimr/geometry/grid_key.h"
 #include "dimr/geometry/kdtree.h"
 
 namespace dimr::pipeline {
@@ -24,10 +25,7 @@ constexpr std::size_t kScoreSample = 3000;
 constexpr double kSample = 0.06;  // m, one normal per cell of this edge for the plane search
 
 std::int64_t CellKey(double u, double z) {
-  const auto iu = static_cast<std::int64_t>(std::floor(u / kCell));
-  const auto iz = static_cast<std::int64_t>(std::floor(z / kCell));
-  return static_cast<std::int64_t>((static_cast<std::uint64_t>(iu) << 32) ^
-                                   static_cast<std::uint32_t>(iz));
+  return geometry::PackCell2(geometry::CellOf(u, kCell), geometry::CellOf(z, kCell));
 }
 
 struct Plane {
@@ -103,16 +101,13 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
 
   std::vector<int> reps;
   {
-    std::unordered_set<std::int64_t> seen;
+    std::unordered_set<std::uint64_t> seen;
     seen.reserve(n / 2 + 1);
     for (std::size_t i = 0; i < n; ++i) {
-      const auto ix = static_cast<std::int64_t>(std::floor(points[i].x() / kSample));
-      const auto iy = static_cast<std::int64_t>(std::floor(points[i].y() / kSample));
-      const auto iz = static_cast<std::int64_t>(std::floor(points[i].z() / kSample));
-      const std::uint64_t key = (static_cast<std::uint64_t>(ix & 0x1fffff) << 42) |
-                                (static_cast<std::uint64_t>(iy & 0x1fffff) << 21) |
-                                static_cast<std::uint64_t>(iz & 0x1fffff);
-      if (seen.insert(static_cast<std::int64_t>(key)).second) reps.push_back(static_cast<int>(i));
+      const std::uint64_t key = geometry::PackCell3(geometry::CellOf(points[i].x(), kSample),
+                                                    geometry::CellOf(points[i].y(), kSample),
+                                                    geometry::CellOf(points[i].z(), kSample));
+      if (seen.insert(key).second) reps.push_back(static_cast<int>(i));
     }
   }
   std::vector<Eigen::Vector2f> normal(n, Eigen::Vector2f::Zero());  // candidates: unit
@@ -208,13 +203,10 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
     // A wall: relabel the overridable points on it, inside its cells grown by one.
     std::unordered_set<std::int64_t> grown;
     for (const std::int64_t key : cells) {
-      const auto iu = static_cast<std::int32_t>(static_cast<std::uint64_t>(key) >> 32);
-      const auto iz = static_cast<std::int32_t>(static_cast<std::uint32_t>(key));
+      const auto [iu, iz] = geometry::UnpackCell2(key);
       for (int du = -1; du <= 1; ++du)
         for (int dz = -1; dz <= 1; ++dz)
-          grown.insert(static_cast<std::int64_t>(
-              (static_cast<std::uint64_t>(static_cast<std::int64_t>(iu) + du) << 32) ^
-              static_cast<std::uint32_t>(iz + dz)));
+          grown.insert(geometry::PackCell2(std::int64_t{iu} + du, std::int64_t{iz} + dz));
     }
     for (std::size_t i = 0; i < n; ++i) {
       if (!WallPlaneOverrides((*semantic)[i])) continue;

@@ -43,17 +43,14 @@ CeilingFilterStats CeilingFilter(BackendCloud* cloud) {
   if (cloud->normals.size() == n) in.normals = std::move(cloud->normals);
   pipeline::CeilingRemoval out;
   try {
-    out = pipeline::RemoveCeiling(in, pipeline::CeilingConfig());
+    out = pipeline::RemoveCeiling(std::move(in), pipeline::CeilingConfig());
   } catch (const InvalidArgument&) {
-    out.found = false;  // a non-finite point: the pipeline names it later
+    out.cloud = std::move(in);  // untouched on a throw (a non-finite point: the pipeline names it)
   }
-  const bool found = out.found;
-  BackendCloud& target = *cloud;
-  pipeline::PointCloudInput& src = found ? out.cloud : in;
-  target.points = std::move(src.points);
-  if (!src.colors.empty()) target.colors = std::move(src.colors);
-  if (!src.normals.empty()) target.normals = std::move(src.normals);
-  if (found) {
+  cloud->points = std::move(out.cloud.points);
+  if (!out.cloud.colors.empty()) cloud->colors = std::move(out.cloud.colors);
+  if (!out.cloud.normals.empty()) cloud->normals = std::move(out.cloud.normals);
+  if (out.found) {
     stats.found = true;
     stats.ceiling_z = out.ceiling_z;
     stats.removed = out.removed;

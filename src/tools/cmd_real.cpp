@@ -185,9 +185,10 @@ void RunRealEval(const RealEvalArgs& a) {
   for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
   if (a.grey) scan.colors.assign(scan.points.size(), Eigen::Vector3f::Constant(0.5f));
   // As the product does: a detected ceiling leaves before stage 1 (its points: no class).
-  pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(scan, CeilingFromFlag(a.ceiling));
   const std::size_t scan_points = scan.points.size();
-  if (cut.found) scan = std::move(cut.cloud);
+  pipeline::CeilingRemoval cut =
+      pipeline::RemoveCeiling(std::move(scan), CeilingFromFlag(a.ceiling));
+  scan = std::move(cut.cloud);  // the scan itself when no ceiling is found
   // The product's density rule (dimr reconstruct --input-voxel, the node's input_voxel_size):
   // auto = voxel means at the training density when the scan is denser than it.
   double voxel = 0.0;

@@ -130,9 +130,10 @@ void RunReconstruct(ReconstructArgs& a) {
       }
       auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
       if (ceiling.enabled) {
-        dimr::pipeline::CeilingRemoval cut = dimr::pipeline::RemoveCeiling(input, ceiling);
+        dimr::pipeline::CeilingRemoval cut =
+            dimr::pipeline::RemoveCeiling(std::move(input), ceiling);
+        input = std::move(cut.cloud);  // the input itself when no ceiling is found
         if (cut.found) {
-          input = std::move(cut.cloud);
           if (!a.quiet) {
             std::printf("%s: ceiling at z = %.2f m removed (%zu points, %.1f m² flat)\n",
                         s.name.c_str(), cut.ceiling_z, cut.removed, cut.area);

@@ -142,6 +142,61 @@ TEST(RemoveCeiling, BadInputAndConfigNameTheProblem) {
   EXPECT_FALSE(RemoveCeiling(PointCloudInput(), CeilingConfig()).found);
 }
 
+TEST(RemoveCeiling, AGivenAwayCloudGivesTheSameResultWithoutACopy) {
+  for (const bool with_ceiling : {true, false}) {
+    Room room = MakeRoom(2.6, with_ceiling);
+    room.cloud.normals.assign(room.cloud.points.size(), V(0, 0, 1));
+    room.cloud.normals[5] = V(1, 0, 0);
+    const CeilingRemoval copy = RemoveCeiling(room.cloud, CeilingConfig());
+    const V* data = room.cloud.points.data();
+    const CeilingRemoval moved = RemoveCeiling(std::move(room.cloud), CeilingConfig());
+    EXPECT_EQ(moved.found, with_ceiling);
+    EXPECT_EQ(moved.found, copy.found);
+    EXPECT_EQ(moved.removed, copy.removed);
+    EXPECT_EQ(moved.kept, copy.kept);
+    EXPECT_EQ(moved.cloud.name, "test room");
+    EXPECT_EQ(moved.cloud.points.data(), data);  // the same storage, compacted in place
+    ASSERT_EQ(moved.cloud.points.size(), copy.cloud.points.size());
+    ASSERT_EQ(moved.cloud.colors.size(), moved.cloud.points.size());
+    ASSERT_EQ(moved.cloud.normals.size(), moved.cloud.points.size());
+    for (std::size_t j = 0; j < moved.cloud.points.size(); ++j) {
+      ASSERT_EQ(moved.cloud.points[j], copy.cloud.points[j]) << j;
+      ASSERT_EQ(moved.cloud.normals[j], copy.cloud.normals[j]) << j;
+    }
+    EXPECT_EQ(moved.cloud.normals[5], V(1, 0, 0));  // point 5 (floor) is kept at its index
+  }
+  // A throw leaves the given-away cloud as it was.
+  Room bad = MakeRoom(2.6, true);
+  bad.cloud.points[3].x() = INFINITY;
+  const std::size_t n = bad.cloud.points.size();
+  try {
+    RemoveCeiling(std::move(bad.cloud), CeilingConfig());
+    FAIL() << "no throw";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("ceiling removal: point cloud 'test room': point 3"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(bad.cloud.points.size(), n);
+  EXPECT_EQ(bad.cloud.colors.size(), n);
+}
+
+TEST(PointCloudInput, ValidateShapeAcceptsAnEmptyCloudAndNamesBadOnes) {
+  EXPECT_NO_THROW(PointCloudInput().ValidateShape());
+  EXPECT_THROW(PointCloudInput().Validate(), InvalidArgument);  // Validate wants points
+  Room room = MakeRoom(1.0, false);
+  room.cloud.colors[2] = V(3, 0, 0);  // out of range: Validate's business, not the shape's
+  EXPECT_NO_THROW(room.cloud.ValidateShape());
+  EXPECT_THROW(room.cloud.Validate(), InvalidArgument);
+  room.cloud.normals.resize(4);
+  try {
+    room.cloud.ValidateShape();
+    FAIL() << "no throw";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("4 normals for"), std::string::npos) << e.what();
+  }
+}
+
 TEST(RemoveCeiling, ResultsGoBackToTheInputPoints) {
   const std::vector<int> kept = {0, 2, 3};
   EXPECT_EQ(ExpandKeptLabels({5, 6, 7}, kept, 5, -1), std::vector<int>({5, -1, 6, 7, -1}));

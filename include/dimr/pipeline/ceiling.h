@@ -58,10 +58,15 @@ struct CeilingRemoval {
   std::size_t removed = 0;  // input points dropped
 };
 
-// Validates `config` and the input's finiteness (dimr::InvalidArgument naming the cloud and
-// the bad point). Deterministic; O(n log n) for the quantiles. With config.enabled false the
-// cloud is returned unchanged.
+// Validates `config` and the input's shape (PointCloudInput::ValidateShape: counts, finite
+// coordinates; dimr::InvalidArgument naming the cloud and the bad point; an empty cloud is
+// returned as it is). Deterministic; O(n log n) for the quantiles. With config.enabled false
+// the cloud is returned unchanged.
 CeilingRemoval RemoveCeiling(const PointCloudInput& input, const CeilingConfig& config);
+// The same on a cloud the caller gives away: the result's cloud is `input` itself, compacted
+// in place when a ceiling is found, moved unchanged when not (no copy either way). On an
+// exception `input` is left as it was.
+CeilingRemoval RemoveCeiling(PointCloudInput&& input, const CeilingConfig& config);
 
 // Per-point values of the kept cloud back on the input: out[kept[j]] = values[j], `fill`
 // elsewhere (the removed points). Throws dimr::InvalidArgument for sizes that do not match or

@@ -28,6 +28,10 @@ struct PointCloudInput {
   // colour component outside [0, 1] or not finite; a normal not finite or of length neither 0
   // nor within 1 +- 0.01.
   void Validate() const;
+  // The structural part of Validate, for steps that run before it and accept an empty cloud:
+  // colours or normals with another count than the points, a coordinate not finite. Same
+  // messages.
+  void ValidateShape() const;
 
   // From a geometry::PointCloud (double coordinates, 8-bit colours -> [0, 1], normals as
   // given). Does not validate.
