@@ -323,4 +323,37 @@ geometry::PointCloud ReadPointCloudFile(const std::string& path) {
   throw ParseError(path, "unsupported point cloud format '" + ext + "' (.ply or .pcd)");
 }
 
+std::size_t DropNonFinitePoints(geometry::PointCloud* cloud) {
+  const std::size_t n = cloud->points.size();
+  auto check = [n](std::size_t got, const std::string& what) {
+    if (got != 0 && got != n) {
+      throw InvalidArgument("DropNonFinitePoints: " + std::to_string(got) + " " + what + " for " +
+                            std::to_string(n) + " points");
+    }
+  };
+  check(cloud->colors.size(), "colours");
+  check(cloud->normals.size(), "normals");
+  for (const auto& a : cloud->attributes) check(a.values.size(), "values of '" + a.name + "'");
+  std::size_t w = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!cloud->points[i].allFinite()) continue;
+    if (w != i) {
+      cloud->points[w] = cloud->points[i];
+      if (!cloud->colors.empty()) cloud->colors[w] = cloud->colors[i];
+      if (!cloud->normals.empty()) cloud->normals[w] = cloud->normals[i];
+      for (auto& a : cloud->attributes) {
+        if (!a.values.empty()) a.values[w] = a.values[i];
+      }
+    }
+    ++w;
+  }
+  cloud->points.resize(w);
+  if (!cloud->colors.empty()) cloud->colors.resize(w);
+  if (!cloud->normals.empty()) cloud->normals.resize(w);
+  for (auto& a : cloud->attributes) {
+    if (!a.values.empty()) a.values.resize(w);
+  }
+  return n - w;
+}
+
 }  // namespace dimr::pipeline

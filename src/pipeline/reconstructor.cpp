@@ -15,6 +15,7 @@
 #include "dimr/geometry/hash.h"
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/bsp_decoder.h"
+#include "dimr/pipeline/gravity.h"
 #include "dimr/pipeline/icp.h"
 #include "dimr/pipeline/placement.h"
 #include "dimr/pipeline/shape_pool.h"
@@ -390,6 +391,16 @@ SceneResult Reconstructor::Reconstruct(const PointCloudInput& input) const {
           name + ": no colours; the stage-1 model uses colour, neutral grey assumed");
     }
     cloud.Validate();
+    // The frame: a cloud without a flat floor at its bottom is most likely not z up (a depth
+    // camera's optical frame) - a warning, since a map may lack its floor (gravity.h).
+    const FloorCheck floor = CheckFloor(cloud);
+    if (!floor.found) {
+      result.warnings.push_back(
+          name + ": no floor at the bottom of the cloud (flat in its lowest 10 cm: " +
+          std::to_string(static_cast<int>(std::lround(100.0 * floor.area_fraction))) +
+          " % of the footprint): dimr expects metres, gravity aligned, z up (a depth camera's "
+          "optical frame is up = -y: dimr reconstruct --up=-y; a tilted one needs levelling)");
+    }
   }
 
   // ---- stage 1.

@@ -110,6 +110,7 @@ BackendResult PipelineBackend::Reconstruct(const BackendCloud& cloud) {
     out.instances.push_back(std::move(b));
   }
   for (const auto& [name, ms] : r.timings) out.timings_ms[name] = ms;
+  out.warnings = std::move(r.warnings);
   return out;
 }
 

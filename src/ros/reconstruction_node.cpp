@@ -420,6 +420,7 @@ void ReconstructionNode::Reconstruct(const BackendCloud& cloud, const std_msgs::
   const ros::WallTime t0 = ros::WallTime::now();
   BackendResult result = backend_->Reconstruct(cloud);
   const double processing = (ros::WallTime::now() - t0).toSec();
+  for (const std::string& w : result.warnings) NoteIssue("scene_warning", w);
 
   std::lock_guard<std::mutex> lock(state_mutex_);
   if (epoch != epoch_) return;  // reset while it ran: discard

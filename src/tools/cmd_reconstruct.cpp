@@ -17,6 +17,8 @@
 #include "dimr/data/labels.h"
 #include "dimr/geometry/error.h"
 #include "dimr/pipeline/ceiling.h"
+#include "dimr/pipeline/cloud_io.h"
+#include "dimr/pipeline/gravity.h"
 #include "dimr/pipeline/reconstructor.h"
 #include "dimr/pipeline/voxel_downsample.h"
 #include "tools/command_registry.h"
@@ -40,6 +42,8 @@ struct ReconstructArgs {
   double scale = 1.0;
   std::string input_voxel = "auto";  // voxel-mean filter: auto | 0 (off) | size in metres
   std::string ceiling = "auto";      // ceiling removal (pipeline/ceiling.h): auto | off
+  std::string up = "z";              // the input axis that points up (pipeline/gravity.h)
+  bool level = false;                // level the cloud by its floor plane (pipeline/gravity.h)
   bool no_icp = false;
   std::string icp_backend = "own";
   std::string score = "combined";
@@ -81,6 +85,8 @@ void RunReconstruct(ReconstructArgs& a) {
                                 a.input_voxel + "'");
   }
   const dimr::pipeline::CeilingConfig ceiling = dimr::tools::CeilingFromFlag(a.ceiling);
+  const Eigen::Matrix3d up = dimr::pipeline::UpAxisRotation(a.up).cast<double>();
+  const bool rotate = !up.isIdentity(0.0);
   dimr::pipeline::ReconstructorConfig& cfg = a.config;
   // One mode, or several (comma-separated): the networks run once per scene, the other modes
   // re-mesh that result (Reconstructor::Remesh) into DIR/<mode>/.
@@ -125,8 +131,41 @@ void RunReconstruct(ReconstructArgs& a) {
   for (auto& s : scenes) {
     try {
       dimr::tools::LoadInputScene(&s);
+      // As the Reconstructor and the node do (before the ceiling and density steps, which
+      // refuse them): organised clouds mark pixels without a return by NaN.
+      const std::size_t dropped = dimr::pipeline::DropNonFinitePoints(&s.cloud);
+      if (dropped > 0 && !a.quiet) {
+        std::printf(
+            "%s: %zu of %zu points have no finite coordinates (NaN / Inf: no return "
+            "in an organised cloud) and are dropped\n",
+            s.name.c_str(), dropped, dropped + s.cloud.points.size());
+      }
       if (a.scale != 1.0) {
         for (auto& p : s.cloud.points) p *= a.scale;
+      }
+      if (rotate) {
+        for (auto& p : s.cloud.points) p = up * p;
+        for (auto& nrm : s.cloud.normals) nrm = up * nrm;
+      }
+      if (a.level && !s.cloud.points.empty()) {
+        const dimr::pipeline::FloorPlane floor = dimr::pipeline::FindFloorPlane(
+            dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name));
+        if (floor.found) {
+          const Eigen::Matrix3d r = dimr::pipeline::LevellingRotation(floor.normal).cast<double>();
+          for (auto& p : s.cloud.points) p = r * p;
+          for (auto& nrm : s.cloud.normals) nrm = r * nrm;
+          if (!a.quiet) {
+            std::printf(
+                "%s: levelled by its floor plane (tilt %.1f deg, %.0f %% of the points "
+                "on it)\n",
+                s.name.c_str(), floor.tilt_deg, 100.0 * floor.inliers);
+          }
+        } else {
+          std::fprintf(stderr,
+                       "warning: %s: --level found no floor plane within 40 deg of up; the "
+                       "cloud is left as it is\n",
+                       s.name.c_str());
+        }
       }
       auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
       if (ceiling.enabled) {
@@ -252,6 +291,15 @@ void SetupReconstruct(CLI::App& app) {
                  "(always; docs/results.md 'Input density')")
       ->capture_default_str();
   dimr::tools::AddCeilingFlag(app, &a->ceiling);
+  app.add_option("--up", a->up,
+                 "the input axis that points up: z (gravity aligned, the default), -y (a depth "
+                 "camera's optical frame), y (y-up mesh exports), x, -x, -z; the cloud is "
+                 "rotated to z up first and every output is in that rotated frame")
+      ->capture_default_str();
+  app.add_flag("--level", a->level,
+               "after --up: rotate the cloud so that its floor plane (RANSAC, within 40 deg of "
+               "up, nothing below it) is level - a pitched depth camera, a hand-held scan; "
+               "outputs are in the levelled frame");
   app.add_option("--scale", a->scale, "multiply coordinates first (0.001 for millimetres)")
       ->capture_default_str();
   app.add_option("--threads", c.threads, "network threads (0 = default)")->capture_default_str();

@@ -215,6 +215,34 @@ TEST(CloudIo, ReadsAsciiAndBinaryPcdAndPly) {
   EXPECT_THROW(ReadPointCloudFile((d / "x.xyz").string()), ParseError);
 }
 
+TEST(CloudIo, OrganisedCloudsDropTheirPixelsWithoutAReturn) {
+  // A 3 x 2 organised PCD (a depth camera's frame): NaN where the sensor saw nothing.
+  const fs::path d = TempDir("pcd_nan");
+  {
+    std::ofstream f(d / "org.pcd");
+    f << "VERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\nCOUNT 1 1 1 1\nWIDTH 3\n"
+         "HEIGHT 2\nPOINTS 6\nDATA ascii\n"
+         "nan nan nan 0\n1 2 3 16711680\nnan nan nan 0\n4 5 6 65280\n7 nan 9 255\n"
+         "0.5 0.5 0.5 255\n";
+  }
+  geometry::PointCloud c = ReadPointCloudFile((d / "org.pcd").string());
+  ASSERT_EQ(c.size(), 6u);  // the reader keeps them: dropping is the caller's choice
+  c.SetAttribute("label", geometry::ScalarType::kInt32, {0, 1, 2, 3, 4, 5});
+  EXPECT_EQ(DropNonFinitePoints(&c), 3u);
+  ASSERT_EQ(c.size(), 3u);
+  EXPECT_EQ(c.points[0], geometry::Vec3(1, 2, 3));
+  EXPECT_EQ(c.points[1], geometry::Vec3(4, 5, 6));
+  EXPECT_EQ(c.points[2], geometry::Vec3(0.5, 0.5, 0.5));
+  ASSERT_EQ(c.colors.size(), 3u);
+  EXPECT_EQ(c.colors[0], geometry::Color(255, 0, 0));
+  EXPECT_EQ(c.colors[1], geometry::Color(0, 255, 0));
+  EXPECT_EQ(c.colors[2], geometry::Color(0, 0, 255));
+  EXPECT_EQ(c.FindAttribute("label")->values, std::vector<double>({1, 3, 5}));
+  EXPECT_EQ(DropNonFinitePoints(&c), 0u);  // nothing left to drop
+  c.normals.resize(1);
+  EXPECT_THROW(DropNonFinitePoints(&c), InvalidArgument);
+}
+
 TEST(ReconstructorConfig, ModesAndPresetsRoundTripByName) {
   for (auto m : {ReconstructionMode::kGeneration, ReconstructionMode::kProjection,
                  ReconstructionMode::kRetrieval}) {

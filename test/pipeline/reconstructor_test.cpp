@@ -19,6 +19,7 @@
 #include "dimr/geometry/sampling.h"
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/bsp_decoder.h"
+#include "dimr/pipeline/gravity.h"
 #include "dimr/pipeline/placement.h"
 #include "dimr/pipeline/shape_pool.h"
 
@@ -316,6 +317,31 @@ TEST_F(ReconstructorRoom, BadInputsGetAClearResultOrError) {
   for (const auto& inst : r.instances) {
     for (int i : inst.support) EXPECT_TRUE(nan.points[static_cast<std::size_t>(i)].allFinite());
   }
+  // The frame: the room itself has its floor at the bottom; the far half of it as a depth
+  // camera in its middle sees it, in the camera's optical frame (z forward, y down), does not.
+  for (const auto& w : rec_->Reconstruct(Input()).warnings) {
+    EXPECT_EQ(w.find("no floor"), std::string::npos) << w;
+  }
+  const PointCloudInput room = Input();
+  Eigen::Vector3f centre = Eigen::Vector3f::Zero();
+  for (const auto& p : room.points) centre += p;
+  centre /= static_cast<float>(room.size());
+  centre.z() = 1.3f;
+  const Eigen::Matrix3f to_camera = UpAxisRotation("-y").transpose();
+  PointCloudInput camera;
+  camera.name = "camera";
+  for (std::size_t i = 0; i < room.size(); ++i) {
+    if (room.points[i].y() < centre.y() + 0.3f) continue;
+    camera.points.push_back(to_camera * (room.points[i] - centre));
+    if (room.has_colors()) camera.colors.push_back(room.colors[i]);
+  }
+  const SceneResult cam = rec_->Reconstruct(camera);
+  bool warned = false;
+  for (const auto& w : cam.warnings) {
+    warned = warned || w.find("camera: no floor at the bottom of the cloud") != std::string::npos;
+  }
+  EXPECT_TRUE(warned) << (cam.warnings.empty() ? std::string("no warning") : cam.warnings[0]);
+
   PointCloudInput all_nan;
   all_nan.points.assign(500, Eigen::Vector3f(std::nanf(""), 0, 0));
   EXPECT_TRUE(rec_->Reconstruct(all_nan).instances.empty());

@@ -45,6 +45,9 @@ struct BackendInstance {
 struct BackendResult {
   std::vector<BackendInstance> instances;
   std::map<std::string, double> timings_ms;
+  // Non-fatal problems of this scene (pipeline::SceneResult::warnings: e.g. no floor at the
+  // bottom of the cloud, an instance whose mesh failed); the node reports each as an issue.
+  std::vector<std::string> warnings;
 };
 
 class SceneBackend {
