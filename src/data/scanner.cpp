@@ -380,10 +380,20 @@ class HashSet64 {
 };
 
 #ifdef DIMR_HAVE_EMBREE
+// Embree picks its kernels at run time, and its kernels for different instruction sets return
+// hit distances that differ in the last bits. Mesh-mode scans bin the noise-free hits into
+// voxels; where a surface lies on a voxel boundary (the floor at z = 0) those bits move hits
+// between two voxel layers and so change which voxels reach min_observations: one seed's scan
+// had 15079 points on the machine that pinned it, 14728 with AVX2 kernels, 14888 with SSE4.2
+// (ScannerTest.DefaultModesArePinned). Capping Embree at AVX2, which every supported machine
+// has, makes `dimr synth` give the same rooms on every machine. One thread: the scanner
+// parallelises over image rows itself.
+constexpr const char* kEmbreeConfig = "threads=1,max_isa=avx2";
+
 RTCDevice SharedDevice() {
   static std::once_flag once;
   static RTCDevice device = nullptr;
-  std::call_once(once, []() { device = rtcNewDevice("threads=1"); });
+  std::call_once(once, []() { device = rtcNewDevice(kEmbreeConfig); });
   if (!device) throw Error("Embree: rtcNewDevice failed");
   return device;
 }

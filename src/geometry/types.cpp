@@ -198,6 +198,11 @@ void TriangleMesh::Append(const TriangleMesh& other) {
   attributes = std::move(merged);
 }
 
+void PointCloud::Transform(const Eigen::Matrix3d& R, const Vec3& t) {
+  for (auto& p : points) p = R * p + t;
+  for (auto& n : normals) n = R * n;
+}
+
 void TriangleMesh::Transform(const Eigen::Matrix3d& R, const Vec3& t) {
   for (auto& v : vertices) v = R * v + t;
   for (auto& n : vertex_normals) n = R * n;

@@ -8,19 +8,11 @@
 #include <unordered_set>
 
 #include "dimr/core/error.h"
+#include "dimr/core/quantile.h"
 #include "dimr/geometry/grid_key.h"
 
 namespace dimr::pipeline {
 namespace {
-
-// The q-quantile of `values` (nearest rank; values is reordered).
-float Quantile(std::vector<float>* values, double q) {
-  const std::size_t k = std::min(values->size() - 1,
-                                 static_cast<std::size_t>(q * static_cast<double>(values->size())));
-  std::nth_element(values->begin(), values->begin() + static_cast<std::ptrdiff_t>(k),
-                   values->end());
-  return (*values)[k];
-}
 
 std::int64_t CellKey(float x, float y, double cell) {
   return geometry::PackCell2(geometry::CellOf(x, cell), geometry::CellOf(y, cell));
@@ -55,8 +47,8 @@ void FindCeiling(const PointCloudInput& input, const CeilingConfig& config, Ceil
   if (!config.enabled || n == 0) return;
   std::vector<float> z(n);
   for (std::size_t i = 0; i < n; ++i) z[i] = input.points[i].z();
-  out->floor_z = Quantile(&z, config.floor_quantile);
-  const float top = Quantile(&z, config.top_quantile);
+  out->floor_z = NearestRankQuantile(&z, config.floor_quantile);
+  const float top = NearestRankQuantile(&z, config.top_quantile);
   const double low = out->floor_z + config.min_height;
   if (top < low) return;
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "dimr/core/error.h"
+#include "dimr/core/quantile.h"
 #include "dimr/geometry/grid_key.h"
 
 namespace dimr::pipeline {
@@ -52,11 +53,8 @@ FloorCheck CheckFloor(const PointCloudInput& input, const FloorCheckConfig& conf
   const std::size_t n = input.points.size();
   std::vector<float> z(n);
   for (std::size_t i = 0; i < n; ++i) z[i] = input.points[i].z();
-  const std::size_t k =
-      std::min(n - 1, static_cast<std::size_t>(config.floor_quantile * static_cast<double>(n)));
-  std::nth_element(z.begin(), z.begin() + static_cast<std::ptrdiff_t>(k), z.end());
   FloorCheck out;
-  out.floor_z = z[k];
+  out.floor_z = NearestRankQuantile(&z, config.floor_quantile);
   // Per x-y cell: the z range of its points in the bottom layer. A floor cell is flat there;
   // a wall's or a leg's cell runs through the whole layer.
   struct Range {
@@ -134,22 +132,17 @@ FloorPlane FindFloorPlane(const PointCloudInput& input, const LevelConfig& confi
   }
   if (best_count == 0 || static_cast<double>(best_count) < config.min_inliers * m) return best;
   // Least-squares refit on the inliers (centroid + smallest principal axis).
+  std::vector<Eigen::Vector3d> inliers;
+  inliers.reserve(best_count);
+  for (const auto& p : pts) {
+    if (std::abs(best.normal.dot(p) + best.offset) <= config.distance)
+      inliers.push_back(p.cast<double>());
+  }
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  std::size_t k = 0;
-  for (const auto& p : pts) {
-    if (std::abs(best.normal.dot(p) + best.offset) <= config.distance) {
-      mean += p.cast<double>();
-      ++k;
-    }
-  }
-  mean /= static_cast<double>(k);
+  for (const auto& q : inliers) mean += q;
+  mean /= static_cast<double>(inliers.size());
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-  for (const auto& p : pts) {
-    if (std::abs(best.normal.dot(p) + best.offset) <= config.distance) {
-      const Eigen::Vector3d q = p.cast<double>() - mean;
-      cov += q * q.transpose();
-    }
-  }
+  for (const auto& q : inliers) cov += (q - mean) * (q - mean).transpose();
   const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(cov);
   Eigen::Vector3d nd = eig.eigenvectors().col(0);
   if (nd.z() < 0) nd = -nd;

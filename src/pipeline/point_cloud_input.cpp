@@ -50,6 +50,11 @@ void PointCloudInput::Validate() const {
   }
 }
 
+void PointCloudInput::Rotate(const Eigen::Matrix3f& r) {
+  for (auto& p : points) p = r * p;
+  for (auto& n : normals) n = r * n;
+}
+
 PointCloudInput PointCloudInput::FromPointCloud(const geometry::PointCloud& cloud,
                                                 const std::string& name) {
   PointCloudInput in;

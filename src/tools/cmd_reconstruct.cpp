@@ -143,17 +143,14 @@ void RunReconstruct(ReconstructArgs& a) {
       if (a.scale != 1.0) {
         for (auto& p : s.cloud.points) p *= a.scale;
       }
-      if (rotate) {
-        for (auto& p : s.cloud.points) p = up * p;
-        for (auto& nrm : s.cloud.normals) nrm = up * nrm;
-      }
-      if (a.level && !s.cloud.points.empty()) {
-        const dimr::pipeline::FloorPlane floor = dimr::pipeline::FindFloorPlane(
-            dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name));
+      if (rotate) s.cloud.Transform(up);
+      auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
+      if (a.level && !input.empty()) {
+        const dimr::pipeline::FloorPlane floor = dimr::pipeline::FindFloorPlane(input);
         if (floor.found) {
-          const Eigen::Matrix3d r = dimr::pipeline::LevellingRotation(floor.normal).cast<double>();
-          for (auto& p : s.cloud.points) p = r * p;
-          for (auto& nrm : s.cloud.normals) nrm = r * nrm;
+          const Eigen::Matrix3f level = dimr::pipeline::LevellingRotation(floor.normal);
+          input.Rotate(level);
+          s.cloud.Transform(level.cast<double>());  // the picture's cloud, in the same frame
           if (!a.quiet) {
             std::printf(
                 "%s: levelled by its floor plane (tilt %.1f deg, %.0f %% of the points "
@@ -167,7 +164,6 @@ void RunReconstruct(ReconstructArgs& a) {
                        s.name.c_str());
         }
       }
-      auto input = dimr::pipeline::PointCloudInput::FromPointCloud(s.cloud, s.name);
       if (ceiling.enabled) {
         dimr::pipeline::CeilingRemoval cut =
             dimr::pipeline::RemoveCeiling(std::move(input), ceiling);

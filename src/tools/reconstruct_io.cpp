@@ -115,10 +115,7 @@ void LoadInputScene(InputScene* s) {
     const fs::path dir = fs::path(s->path).parent_path();
     s->alignment = ReadAxisAlignment(dir / (s->name + ".txt"));
     if (!s->alignment.isIdentity(0.0)) {
-      const Eigen::Matrix3d r = s->alignment.topLeftCorner<3, 3>();
-      const Eigen::Vector3d t = s->alignment.topRightCorner<3, 1>();
-      for (auto& q : s->cloud.points) q = r * q + t;
-      for (auto& nrm : s->cloud.normals) nrm = r * nrm;
+      s->cloud.Transform(s->alignment.topLeftCorner<3, 3>(), s->alignment.topRightCorner<3, 1>());
     }
   }
   s->cloud.attributes.clear();

@@ -2,6 +2,9 @@
 
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <cmath>
+
 #include "dimr/geometry/error.h"
 #include "geometry/test_meshes.h"
 
@@ -22,6 +25,22 @@ TEST(TriangleMesh, CubeAreaAndVolume) {
   EXPECT_NEAR(b.min.x(), 5, 1e-12);
   EXPECT_NEAR(b.max.y(), 2, 1e-12);
   EXPECT_NEAR(b.Volume(), 3.0, 1e-12);
+}
+
+TEST(PointCloud, TransformMovesPointsAndTurnsNormals) {
+  PointCloud c;
+  c.points = {Vec3(1, 0, 0), Vec3(0, 2, 3)};
+  c.normals = {Vec3(0, 0, 1), Vec3(1, 0, 0)};
+  c.colors = {Color(1, 2, 3), Color(4, 5, 6)};
+  const Eigen::Matrix3d r = Eigen::AngleAxisd(M_PI / 2, Vec3::UnitX()).toRotationMatrix();
+  c.Transform(r, Vec3(0, 0, 10));
+  EXPECT_TRUE(c.points[0].isApprox(Vec3(1, 0, 10)));
+  EXPECT_TRUE(c.points[1].isApprox(Vec3(0, -3, 12)));
+  EXPECT_TRUE(c.normals[0].isApprox(Vec3(0, -1, 0)));  // no translation on normals
+  EXPECT_TRUE(c.normals[1].isApprox(Vec3(1, 0, 0)));
+  EXPECT_EQ(c.colors[1], Color(4, 5, 6));
+  c.Transform(r.transpose(), Vec3::Zero());
+  EXPECT_TRUE(c.points[0].isApprox(Vec3(1, 10, 0)));
 }
 
 TEST(TriangleMesh, AppendOffsetsIndices) {

@@ -97,7 +97,7 @@ TEST(FindFloorPlane, LevelsATiltedRoomAndFindsNoFloorWhereThereIsNone) {
                                 Eigen::AngleAxisf(0.122f, Eigen::Vector3f::UnitY()))
                                    .toRotationMatrix();
   PointCloudInput tilted = room;
-  for (auto& p : tilted.points) p = tilt * p;
+  tilted.Rotate(tilt);
   const FloorPlane f = FindFloorPlane(tilted);
   ASSERT_TRUE(f.found);
   EXPECT_NEAR(f.tilt_deg, std::acos((tilt * Eigen::Vector3f::UnitZ()).z()) * 180.0 / 3.14159265,
@@ -114,6 +114,15 @@ TEST(FindFloorPlane, LevelsATiltedRoomAndFindsNoFloorWhereThereIsNone) {
     hi = std::max(hi, z);
   }
   EXPECT_LT(hi - lo, 0.03f);
+  // PointCloudInput::Rotate turns points and normals, not colours.
+  PointCloudInput one;
+  one.points = {Eigen::Vector3f(0, 1, 0)};
+  one.normals = {Eigen::Vector3f(0, 0, 1)};
+  one.colors = {Eigen::Vector3f(0.1f, 0.2f, 0.3f)};
+  one.Rotate(r);
+  EXPECT_TRUE(one.points[0].isApprox(r * Eigen::Vector3f(0, 1, 0)));
+  EXPECT_TRUE(one.normals[0].isApprox(r.col(2)));
+  EXPECT_EQ(one.colors[0], Eigen::Vector3f(0.1f, 0.2f, 0.3f));
   // Deterministic.
   const FloorPlane again = FindFloorPlane(tilted);
   EXPECT_EQ(again.normal, f.normal);

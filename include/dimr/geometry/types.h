@@ -77,6 +77,8 @@ struct PointCloud {
   void SetAttribute(const std::string& name, ScalarType type, std::vector<double> values);
 
   AABB Bounds() const;
+  // Applies p -> R p + t to the points (and R to the normals), as TriangleMesh::Transform.
+  void Transform(const Eigen::Matrix3d& R, const Vec3& t = Vec3::Zero());
   // Throws dimr::InvalidArgument naming `what` if an optional array has the wrong length
   // or any coordinate is not finite.
   void Validate(const std::string& what) const;

@@ -33,6 +33,9 @@ struct PointCloudInput {
   // messages.
   void ValidateShape() const;
 
+  // p -> r p for every point and normal (a rotation about the origin: levelling, up axes).
+  void Rotate(const Eigen::Matrix3f& r);
+
   // From a geometry::PointCloud (double coordinates, 8-bit colours -> [0, 1], normals as
   // given). Does not validate.
   static PointCloudInput FromPointCloud(const geometry::PointCloud& cloud,
