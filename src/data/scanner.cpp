@@ -274,7 +274,11 @@ class VoxelAccumulator {
     double sx = 0, sy = 0, sz = 0;
     std::uint32_t r = 0, g = 0, b = 0;
   };
-  explicit VoxelAccumulator(double voxel) : inv_(1.0 / voxel) { slots_.resize(1 << 16); }
+  // `offset`: the grid is shifted by this fraction of a voxel (voxel k spans [k - offset,
+  // k + 1 - offset) voxels).
+  VoxelAccumulator(double voxel, double offset) : inv_(1.0 / voxel), offset_(offset) {
+    slots_.resize(1 << 16);
+  }
 
   static std::uint64_t Pack(std::int64_t x, std::int64_t y, std::int64_t z) {
     const std::int64_t o = 1 << 20;
@@ -286,9 +290,9 @@ class VoxelAccumulator {
   // the noisy point would bias the voxels next to a surface towards the noise tails).
   void Add(const Eigen::Vector3f& bin, const Eigen::Vector3f& p, const Color& c, int object,
            double weight) {
-    const std::uint64_t key = Pack(static_cast<std::int64_t>(std::floor(bin.x() * inv_)),
-                                   static_cast<std::int64_t>(std::floor(bin.y() * inv_)),
-                                   static_cast<std::int64_t>(std::floor(bin.z() * inv_)));
+    const std::uint64_t key = Pack(static_cast<std::int64_t>(std::floor(bin.x() * inv_ + offset_)),
+                                   static_cast<std::int64_t>(std::floor(bin.y() * inv_ + offset_)),
+                                   static_cast<std::int64_t>(std::floor(bin.z() * inv_ + offset_)));
     if (size_ * 2 >= slots_.size()) Grow();
     Entry& e = Find(key, object);
     if (e.object < 0) {
@@ -334,6 +338,7 @@ class VoxelAccumulator {
     }
   }
   double inv_;
+  double offset_;
   std::vector<Entry> slots_;
   std::size_t size_ = 0;
 };
@@ -924,7 +929,12 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
   }
 
   ScanResult result;
-  VoxelAccumulator acc(scannet ? 0.01 : cfg.mesh_voxel_size);
+  // Mesh mode: voxel centres on the integer grid (offset 1/2), so the floor (z = 0) lies in the
+  // middle of a voxel layer. On the unshifted grid the floor's noise-free hits fell on a voxel
+  // boundary and rounding split them between two layers: a doubled floor, a quarter of a v1
+  // room's points within 4 mm of another (docs/synthscan.md, "Same rooms on every machine").
+  // ScanNet mode keeps its 1 cm label cells unshifted (only their centroids are used).
+  VoxelAccumulator acc(scannet ? 0.01 : cfg.mesh_voxel_size, scannet ? 0.0 : 0.5);
   HashSet64 observed;
   std::unique_ptr<TsdfFusion> fusion;
   if (scannet) fusion = std::make_unique<TsdfFusion>(cfg.tsdf);
