@@ -582,6 +582,9 @@ const config::Fields<ScannerConfig>& ScannerFields() {
               "min_coverage", [](C& c) -> double& { return c.min_coverage; }, "",
               "walked part of the loop drawn in [min_coverage, 1]", 0.1, 1.0)
           .Number(
+              "mesh_grid_offset", [](C& c) -> double& { return c.mesh_grid_offset; }, "voxels",
+              "mesh mode's grid shift (0.5: one floor layer)", 0.0, 0.99)
+          .Number(
               "height_cap_probability", [](C& c) -> double& { return c.height_cap_probability; },
               "", "scans that stop at a height", 0.0, 1.0)
           .Number(
@@ -739,6 +742,7 @@ void ScannerConfig::Validate() const {
   if (density == ScanDensity::kScanNet) tsdf.Validate();
   if (!(mesh_voxel_size >= 0.005 && mesh_voxel_size <= 0.5))
     fail("mesh_voxel_size must be in [0.005, 0.5] m");
+  if (!(mesh_grid_offset >= 0 && mesh_grid_offset < 1)) fail("mesh_grid_offset must be in [0, 1)");
   if (min_observations < 1) fail("min_observations must be >= 1");
   if (!(max_fused_sigma > 0)) fail("max_fused_sigma must be > 0");
   if (raw_pixel_stride < 1 || frame_pixel_stride < 1) fail("pixel strides must be >= 1");
@@ -929,12 +933,9 @@ ScanResult ScanRoom(const Room& room, const ScannerConfig& cfg, std::uint64_t se
   }
 
   ScanResult result;
-  // Mesh mode: voxel centres on the integer grid (offset 1/2), so the floor (z = 0) lies in the
-  // middle of a voxel layer. On the unshifted grid the floor's noise-free hits fell on a voxel
-  // boundary and rounding split them between two layers: a doubled floor, a quarter of a v1
-  // room's points within 4 mm of another (docs/synthscan.md, "Same rooms on every machine").
-  // ScanNet mode keeps its 1 cm label cells unshifted (only their centroids are used).
-  VoxelAccumulator acc(scannet ? 0.01 : cfg.mesh_voxel_size, scannet ? 0.0 : 0.5);
+  // Mesh mode's grid shift: see ScannerConfig::mesh_grid_offset. ScanNet mode's 1 cm label cells
+  // are never shifted (only their centroids are used).
+  VoxelAccumulator acc(scannet ? 0.01 : cfg.mesh_voxel_size, scannet ? 0.0 : cfg.mesh_grid_offset);
   HashSet64 observed;
   std::unique_ptr<TsdfFusion> fusion;
   if (scannet) fusion = std::make_unique<TsdfFusion>(cfg.tsdf);
