@@ -11,6 +11,7 @@
 #include "dimr/data/synth_random.h"
 #include "dimr/data/synthscan.h"
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/grid_key.h"
 #include "dimr/geometry/kdtree.h"
 #include "dimr/geometry/mesh_distance.h"
 
@@ -347,7 +348,7 @@ TEST(ScannerTest, MeshGridOffsetKeepsOneFloorLayer) {
     Layers out;
     out.points = mesh.points.size();
     const geometry::KdTree tree(mesh.points);
-    std::vector<std::uint64_t> columns;
+    std::vector<std::int64_t> columns;
     for (const Vec3& p : mesh.points) {
       const auto nn = tree.KNearest(p, 2);
       if (nn.size() == 2 && nn[1].second < 0.005 * 0.005) ++out.close;
@@ -357,7 +358,7 @@ TEST(ScannerTest, MeshGridOffsetKeepsOneFloorLayer) {
       // The x-y cell of the (shifted) grid the point was fused in.
       const auto ix = static_cast<std::int64_t>(std::floor(p.x() / c.mesh_voxel_size + offset));
       const auto iy = static_cast<std::int64_t>(std::floor(p.y() / c.mesh_voxel_size + offset));
-      columns.push_back(static_cast<std::uint64_t>((ix + (1 << 20)) << 21 | (iy + (1 << 20))));
+      columns.push_back(geometry::PackCell2(ix, iy));
     }
     std::sort(columns.begin(), columns.end());
     out.columns =
