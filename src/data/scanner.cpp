@@ -742,7 +742,8 @@ void ScannerConfig::Validate() const {
   if (density == ScanDensity::kScanNet) tsdf.Validate();
   if (!(mesh_voxel_size >= 0.005 && mesh_voxel_size <= 0.5))
     fail("mesh_voxel_size must be in [0.005, 0.5] m");
-  if (!(mesh_grid_offset >= 0 && mesh_grid_offset < 1)) fail("mesh_grid_offset must be in [0, 1)");
+  if (!(mesh_grid_offset >= 0 && mesh_grid_offset <= 0.99))
+    fail("mesh_grid_offset must be in [0, 0.99] voxels");  // the --scanner parser's range
   if (min_observations < 1) fail("min_observations must be >= 1");
   if (!(max_fused_sigma > 0)) fail("max_fused_sigma must be > 0");
   if (raw_pixel_stride < 1 || frame_pixel_stride < 1) fail("pixel strides must be >= 1");

@@ -170,7 +170,9 @@ std::string Fmt(double v) {
 void PrintEval(const Stage1EvalRun& r) {
   std::printf("%d scenes, %lld points; network %.1f s, clustering %.1f s\n", r.scenes, r.points,
               r.network_s, r.cluster_s);
-  std::printf("\n| RFS class | IoU | GT points | most often taken for |\n|---|---|---|---|\n");
+  std::printf(
+      "\n| RFS class | IoU | GT points | GT objects (scenes) | most often taken for |\n"
+      "|---|---|---|---|---|\n");
   const auto& names = data::RfsClassNames();
   for (int c = 0; c < nn::kStage1Classes; ++c) {
     if (r.semantic.tp[c] + r.semantic.fn[c] + r.semantic.fp[c] == 0) continue;
@@ -181,21 +183,25 @@ void PrintEval(const Stage1EvalRun& r) {
                     100.0 * r.confused_share[c]);
       confused = b;
     }
-    std::printf("| %s | %s | %lld | %s |\n", names[c], Fmt(r.semantic.iou[c]).c_str(),
-                r.semantic.tp[c] + r.semantic.fn[c], confused.c_str());
+    std::printf("| %s | %s | %lld | %d (%d) | %s |\n", names[c], Fmt(r.semantic.iou[c]).c_str(),
+                r.semantic.tp[c] + r.semantic.fn[c], r.gt_objects[c], r.gt_scenes[c],
+                confused.c_str());
   }
   std::printf(
       "\nsemantic mIoU over the %d classes present: %.4f (all predicted/present: %.4f), "
       "accuracy %.4f\n",
       r.classes_present, r.miou_present, r.semantic.miou, r.semantic.accuracy);
-  std::printf("\n| CAD class | AP | AP@50 | AP@25 |\n|---|---|---|---|\n");
+  std::printf("\n| CAD class | AP | AP@50 | AP@25 | GT instances |\n|---|---|---|---|---|\n");
   const auto& cad = data::CadClassNames();
+  int gt_total = 0;
   for (int c = 0; c < data::kNumCadClasses; ++c) {
-    std::printf("| %s | %s | %s | %s |\n", cad[c], Fmt(r.instances.class_ap[c]).c_str(),
-                Fmt(r.instances.class_ap50[c]).c_str(), Fmt(r.instances.class_ap25[c]).c_str());
+    std::printf("| %s | %s | %s | %s | %d |\n", cad[c], Fmt(r.instances.class_ap[c]).c_str(),
+                Fmt(r.instances.class_ap50[c]).c_str(), Fmt(r.instances.class_ap25[c]).c_str(),
+                r.gt_cad_instances[c]);
+    gt_total += r.gt_cad_instances[c];
   }
-  std::printf("| **mean** | %s | %s | %s |\n", Fmt(r.instances.map).c_str(),
-              Fmt(r.instances.map50).c_str(), Fmt(r.instances.map25).c_str());
+  std::printf("| **mean** | %s | %s | %s | %d |\n", Fmt(r.instances.map).c_str(),
+              Fmt(r.instances.map50).c_str(), Fmt(r.instances.map25).c_str(), gt_total);
   std::printf("\nmedian heading error of matched CAD instances: %.1f deg\n", r.heading_error_deg);
 }
 
@@ -211,12 +217,18 @@ nlohmann::json EvalJson(const Stage1EvalRun& r) {
   j["miou"] = r.semantic.miou;
   j["accuracy"] = r.semantic.accuracy;
   const auto& names = data::RfsClassNames();
-  for (int c = 0; c < nn::kStage1Classes; ++c) j["semantic_iou"][names[c]] = num(r.semantic.iou[c]);
+  for (int c = 0; c < nn::kStage1Classes; ++c) {
+    j["semantic_iou"][names[c]] = num(r.semantic.iou[c]);
+    j["semantic_support"][names[c]] = {{"points", r.semantic.tp[c] + r.semantic.fn[c]},
+                                       {"objects", r.gt_objects[c]},
+                                       {"scenes", r.gt_scenes[c]}};
+  }
   const auto& cad = data::CadClassNames();
   for (int c = 0; c < data::kNumCadClasses; ++c) {
     j["instance"][cad[c]] = {{"ap", num(r.instances.class_ap[c])},
                              {"ap50", num(r.instances.class_ap50[c])},
-                             {"ap25", num(r.instances.class_ap25[c])}};
+                             {"ap25", num(r.instances.class_ap25[c])},
+                             {"gt_instances", r.gt_cad_instances[c]}};
   }
   j["map"] = r.instances.map;
   j["map50"] = r.instances.map50;

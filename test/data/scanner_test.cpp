@@ -385,6 +385,12 @@ TEST(ScannerTest, MeshGridOffsetKeepsOneFloorLayer) {
   ScannerConfig bad = SmallScanner();
   bad.mesh_grid_offset = 1.0;
   EXPECT_THROW(bad.Validate(), InvalidArgument);
+  // The API and the --scanner parser accept the same range, [0, 0.99].
+  bad.mesh_grid_offset = 0.995;
+  EXPECT_THROW(bad.Validate(), InvalidArgument);
+  bad.mesh_grid_offset = 0.99;
+  EXPECT_NO_THROW(bad.Validate());
+  EXPECT_THROW(ScannerFields().Parse("mesh_grid_offset=0.995", bad), InvalidArgument);
 }
 
 TEST(ScannerTest, TemporalAveragingShrinksNoiseAndDithersDisparitySteps) {

@@ -78,6 +78,11 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_GE(j["accuracy"].get<double>(), 0.0);
   EXPECT_GT(j["classes_present"].get<int>(), 2);  // at least wall, floor and one object class
   EXPECT_TRUE(j["instance"].contains("chair"));
+  // Support: both rooms have a floor; the same rooms twice (below) count twice.
+  EXPECT_EQ(j["semantic_support"]["floor"]["scenes"].get<int>(), 2);
+  EXPECT_GT(j["semantic_support"]["floor"]["points"].get<long long>(), 0);
+  EXPECT_EQ(j["semantic_support"]["bed"]["scenes"].get<int>() > 0,
+            j["semantic_support"]["bed"]["points"].get<long long>() > 0);
   int pngs = 0;
   for (const auto& e : fs::directory_iterator(d + "/png")) {
     EXPECT_EQ(ReadFileText(e.path()).substr(1, 3), "PNG");
@@ -96,6 +101,11 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_EQ(js["scenes"].get<int>(), 4);
   EXPECT_EQ(js["points"].get<long long>(), 2 * points);
   EXPECT_NEAR(js["miou_present"].get<double>(), j["miou_present"].get<double>(), 1e-9);
+  EXPECT_EQ(js["semantic_support"]["floor"]["scenes"].get<int>(), 4);
+  EXPECT_EQ(js["semantic_support"]["chair"]["objects"].get<int>(),
+            2 * j["semantic_support"]["chair"]["objects"].get<int>());
+  EXPECT_EQ(js["instance"]["chair"]["gt_instances"].get<int>(),
+            2 * j["instance"]["chair"]["gt_instances"].get<int>());
   std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
                              "/cache.bin@3 --json " + d + "/eval_rep.json");
   ASSERT_EQ(rc, 0) << out;

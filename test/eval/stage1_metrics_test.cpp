@@ -69,6 +69,45 @@ TEST(Stage1Metrics, WrongLabelsLowerTheIouAndNameTheConfusion) {
   EXPECT_TRUE(std::isnan(m.instances.class_ap50[3]));  // a false sofa: no GT, ScanNet's NaN
 }
 
+TEST(Stage1Metrics, SupportCountsObjectsScenesAndCadInstances) {
+  Stage1SceneEval a = Scene();
+  // A third instance: 50 of the wall points become a small cabinet (RFS 2, CAD 5) whose points
+  // are 30 cabinet + 20 wall labels (majority cabinet); under 100 points, so the AP ignores it.
+  a.gt_instances.push_back({5, false, 0.0});
+  for (int i = 0; i < 50; ++i) {
+    a.gt_instance[i] = 2;
+    if (i < 30) a.gt_semantic[i] = 2;
+  }
+  a.pred_semantic = a.gt_semantic;
+  // b: the same two instances, relabelled: floor everywhere but 100..159 (chair) and 160..229
+  // (table), so the chair instance is a 60 / 60 tie and the table instance mostly floor.
+  Stage1SceneEval b = Scene();
+  b.gt_semantic.assign(340, 1);
+  for (int i = 100; i < 160; ++i) b.gt_semantic[i] = 4;  // chair: 60 chair + 60 floor labels
+  for (int i = 160; i < 230; ++i) b.gt_semantic[i] = 6;  // 60 chair-instance points + 10 table
+  b.pred_semantic = b.gt_semantic;
+  Stage1MetricsAccumulator acc;
+  acc.Add(a);
+  acc.Add(b);
+  const Stage1Metrics m = acc.Result();
+  ASSERT_EQ(m.gt_objects.size(), 25u);
+  ASSERT_EQ(m.gt_cad_instances.size(), 8u);
+  EXPECT_EQ(m.gt_scenes[0], 1);   // wall only in a
+  EXPECT_EQ(m.gt_scenes[1], 1);   // floor only in b
+  EXPECT_EQ(m.gt_scenes[2], 1);   // cabinet only in a
+  EXPECT_EQ(m.gt_scenes[4], 2);   // chair in both
+  EXPECT_EQ(m.gt_scenes[6], 2);   // table in both
+  EXPECT_EQ(m.gt_scenes[3], 0);   // bed nowhere
+  EXPECT_EQ(m.gt_objects[0], 0);  // the wall has no instance id
+  EXPECT_EQ(m.gt_objects[2], 1);  // the small cabinet, by its majority
+  EXPECT_EQ(m.gt_objects[4], 2);  // a's chair; b's chair (60 chair = 60 table-labelled: first max)
+  EXPECT_EQ(m.gt_objects[1], 1);  // b's table instance is mostly floor labels (110 of 120)
+  EXPECT_EQ(m.gt_objects[6], 1);  // a's table
+  EXPECT_EQ(m.gt_cad_instances[1], 2);  // the chairs (120 points each)
+  EXPECT_EQ(m.gt_cad_instances[0], 2);  // the tables
+  EXPECT_EQ(m.gt_cad_instances[5], 0);  // the 50-point cabinet is below the AP's 100 points
+}
+
 TEST(Stage1Metrics, InconsistentScenesNameTheScene) {
   Stage1MetricsAccumulator acc;
   acc.Add(Scene());
