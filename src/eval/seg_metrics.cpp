@@ -190,6 +190,12 @@ InstanceApResult InstanceAp(const std::vector<InstanceScene>& scenes, int num_cl
     }
   }
 
+  res.gt_instances.assign(num_classes, 0);
+  for (const auto& gts : all_gt) {
+    for (const GtInst& g : gts) {
+      if (g.vert_count >= opt.min_region_size) ++res.gt_instances[g.cls];
+    }
+  }
   res.ap.assign(num_classes, std::vector<double>(no, kNaN));
   for (int c = 0; c < num_classes; ++c) {
     for (std::size_t oi = 0; oi < no; ++oi) {

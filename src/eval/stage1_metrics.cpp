@@ -15,7 +15,6 @@ Stage1MetricsAccumulator::Stage1MetricsAccumulator(int num_semantic, int num_cad
   }
   gt_objects_.assign(num_semantic, 0);
   gt_scenes_.assign(num_semantic, 0);
-  gt_cad_instances_.assign(num_cad, 0);
 }
 
 void Stage1MetricsAccumulator::Add(const Stage1SceneEval& s) {
@@ -34,32 +33,27 @@ void Stage1MetricsAccumulator::Add(const Stage1SceneEval& s) {
   is.gt_label.assign(n, -1);
   is.gt_instance.assign(n, -1);
   std::vector<int> inst_size(s.gt_instances.size(), 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const int k = s.gt_instance[i];
-    if (k < 0 || s.gt_instances[k].cad_class < 0) continue;
-    is.gt_label[i] = s.gt_instances[k].cad_class;
-    is.gt_instance[i] = k;
-    ++inst_size[k];
-  }
-  // Support: the scenes holding each class, each GT instance's majority class, the CAD instances
-  // large enough for the AP.
+  // Support: the scenes holding each class and each GT instance's majority class.
   const int nc = num_semantic_;
   std::vector<char> in_scene(nc, 0);
   std::vector<int> votes(s.gt_instances.size() * static_cast<std::size_t>(nc), 0);
   for (std::size_t i = 0; i < n; ++i) {
+    const int k = s.gt_instance[i];
     const int g = s.gt_semantic[i];
-    if (g < 0 || g >= nc) continue;
-    in_scene[g] = 1;
-    if (s.gt_instance[i] >= 0) ++votes[static_cast<std::size_t>(s.gt_instance[i]) * nc + g];
+    if (g >= 0 && g < nc) {
+      in_scene[g] = 1;
+      if (k >= 0) ++votes[static_cast<std::size_t>(k) * nc + g];
+    }
+    if (k < 0 || s.gt_instances[k].cad_class < 0) continue;
+    is.gt_label[i] = s.gt_instances[k].cad_class;
+    is.gt_instance[i] = k;
+    ++inst_size[k];
   }
   for (int c = 0; c < nc; ++c) gt_scenes_[c] += in_scene[c];
   for (std::size_t k = 0; k < s.gt_instances.size(); ++k) {
     const auto first = votes.begin() + static_cast<std::ptrdiff_t>(k * nc);
     const auto best = std::max_element(first, first + nc);
     if (*best > 0) ++gt_objects_[best - first];
-    const int cad = s.gt_instances[k].cad_class;
-    if (cad >= 0 && cad < num_cad_ && inst_size[k] >= InstanceApOptions().min_region_size)
-      ++gt_cad_instances_[cad];
   }
   for (const auto& p : s.preds) {
     is.preds.push_back({p.cad_class, p.score, p.points});
@@ -102,7 +96,6 @@ Stage1Metrics Stage1MetricsAccumulator::Result() const {
   r.miou_present = r.classes_present ? sum / r.classes_present : 0;
   r.gt_objects = gt_objects_;
   r.gt_scenes = gt_scenes_;
-  r.gt_cad_instances = gt_cad_instances_;
   const int nc = num_semantic_;
   std::vector<long long> confusion(static_cast<std::size_t>(nc) * nc, 0);
   for (std::size_t i = 0; i < gt_sem_.size(); ++i) {

@@ -197,8 +197,8 @@ void PrintEval(const Stage1EvalRun& r) {
   for (int c = 0; c < data::kNumCadClasses; ++c) {
     std::printf("| %s | %s | %s | %s | %d |\n", cad[c], Fmt(r.instances.class_ap[c]).c_str(),
                 Fmt(r.instances.class_ap50[c]).c_str(), Fmt(r.instances.class_ap25[c]).c_str(),
-                r.gt_cad_instances[c]);
-    gt_total += r.gt_cad_instances[c];
+                r.instances.gt_instances[c]);
+    gt_total += r.instances.gt_instances[c];
   }
   std::printf("| **mean** | %s | %s | %s | %d |\n", Fmt(r.instances.map).c_str(),
               Fmt(r.instances.map50).c_str(), Fmt(r.instances.map25).c_str(), gt_total);
@@ -228,7 +228,7 @@ nlohmann::json EvalJson(const Stage1EvalRun& r) {
     j["instance"][cad[c]] = {{"ap", num(r.instances.class_ap[c])},
                              {"ap50", num(r.instances.class_ap50[c])},
                              {"ap25", num(r.instances.class_ap25[c])},
-                             {"gt_instances", r.gt_cad_instances[c]}};
+                             {"gt_instances", r.instances.gt_instances[c]}};
   }
   j["map"] = r.instances.map;
   j["map50"] = r.instances.map50;

@@ -91,7 +91,7 @@ TEST(Stage1Metrics, SupportCountsObjectsScenesAndCadInstances) {
   acc.Add(b);
   const Stage1Metrics m = acc.Result();
   ASSERT_EQ(m.gt_objects.size(), 25u);
-  ASSERT_EQ(m.gt_cad_instances.size(), 8u);
+  ASSERT_EQ(m.instances.gt_instances.size(), 8u);
   EXPECT_EQ(m.gt_scenes[0], 1);   // wall only in a
   EXPECT_EQ(m.gt_scenes[1], 1);   // floor only in b
   EXPECT_EQ(m.gt_scenes[2], 1);   // cabinet only in a
@@ -103,9 +103,9 @@ TEST(Stage1Metrics, SupportCountsObjectsScenesAndCadInstances) {
   EXPECT_EQ(m.gt_objects[4], 2);  // a's chair; b's chair (60 chair = 60 table-labelled: first max)
   EXPECT_EQ(m.gt_objects[1], 1);  // b's table instance is mostly floor labels (110 of 120)
   EXPECT_EQ(m.gt_objects[6], 1);  // a's table
-  EXPECT_EQ(m.gt_cad_instances[1], 2);  // the chairs (120 points each)
-  EXPECT_EQ(m.gt_cad_instances[0], 2);  // the tables
-  EXPECT_EQ(m.gt_cad_instances[5], 0);  // the 50-point cabinet is below the AP's 100 points
+  EXPECT_EQ(m.instances.gt_instances[1], 2);  // the chairs (120 points each)
+  EXPECT_EQ(m.instances.gt_instances[0], 2);  // the tables
+  EXPECT_EQ(m.instances.gt_instances[5], 0);  // the 50-point cabinet is below the AP's 100 points
 }
 
 TEST(Stage1Metrics, InconsistentScenesNameTheScene) {

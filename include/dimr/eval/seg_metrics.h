@@ -50,6 +50,7 @@ struct InstanceApResult {
   double map = 0.0;                     // nanmean over classes x overlaps except 0.25
   double map50 = 0.0;                   // nanmean over classes
   double map25 = 0.0;
+  std::vector<int> gt_instances;  // per class: the GT regions scored (>= min_region_size points)
 };
 
 InstanceApResult InstanceAp(const std::vector<InstanceScene>& scenes, int num_classes,

@@ -45,11 +45,9 @@ struct Stage1Metrics {
   long long points = 0;
   // Support, so that a class mean can be read with its sampling noise in mind: per RFS class,
   // the GT instances whose points are mostly that class (stuff without instance ids counts
-  // none) and the scenes holding any of its points; per CAD class, the GT instances the AP
-  // counts (>= InstanceApOptions::min_region_size points).
+  // none) and the scenes holding any of its points (per CAD class: instances.gt_instances).
   std::vector<int> gt_objects;
   std::vector<int> gt_scenes;
-  std::vector<int> gt_cad_instances;
   // Median |heading error| (degrees) over the predictions whose best GT instance (most shared
   // points) has a heading and point IoU > 0.5; 0 when there is none.
   double heading_error_deg = 0;
@@ -69,7 +67,7 @@ class Stage1MetricsAccumulator {
   std::vector<int> gt_sem_, pred_sem_;
   std::vector<InstanceScene> inst_scenes_;
   std::vector<double> heading_errors_;
-  std::vector<int> gt_objects_, gt_scenes_, gt_cad_instances_;
+  std::vector<int> gt_objects_, gt_scenes_;
 };
 
 }  // namespace dimr::eval
