@@ -584,6 +584,31 @@ Stage1Model Stage1Model::LoadWithoutColour(const std::string& path) {
   return geometry;
 }
 
+Stage1Model Stage1Model::LoadAtScale(const std::string& path, double scale) {
+  const Stage1Model source = Load(path);
+  Stage1Config config = source.config();
+  config.input.scale = scale;
+  try {
+    config.Validate();
+  } catch (const InvalidArgument& e) {
+    throw InvalidArgument("stage1: cannot load '" + path + "' at scale " + std::to_string(scale) +
+                          ": " + e.what());
+  }
+  // No tensor's shape depends on the voxel size: every parameter and buffer (BatchNorm running
+  // statistics included) is copied as it is.
+  Stage1Model rescaled(config);
+  torch::NoGradGuard no_grad;
+  const auto source_params = source.impl_->net->named_parameters();
+  const auto source_buffers = source.impl_->net->named_buffers();
+  for (auto& item : rescaled.impl_->net->named_parameters()) {
+    item.value().copy_(source_params[item.key()]);
+  }
+  for (auto& item : rescaled.impl_->net->named_buffers()) {
+    item.value().copy_(source_buffers[item.key()]);
+  }
+  return rescaled;
+}
+
 Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
   torch::NoGradGuard no_grad;
   const bool was_training = impl_->net->is_training();

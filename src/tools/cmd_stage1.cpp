@@ -417,6 +417,16 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
     model = nn::Stage1Model::LoadWithoutColour(a.init);
     std::printf("--init %s: colour input dropped (rgb=1 -> rgb=0)\n", a.init.c_str());
   }
+  nn::Stage1Config init_at_scale = model.config();
+  init_at_scale.input.scale = config.input.scale;
+  if (!a.init.empty() && model.config().input.scale != config.input.scale &&
+      init_at_scale.ToString() == config.ToString()) {
+    // A fine-tune at another voxel size: the weights as they are, the grid of --config.
+    const double from = model.config().input.scale;
+    model = nn::Stage1Model::LoadAtScale(a.init, config.input.scale);
+    std::printf("--init %s: voxel size %.4g m -> %.4g m (scale %g -> %g)\n", a.init.c_str(),
+                1.0 / from, 1.0 / config.input.scale, from, config.input.scale);
+  }
   if (model.config().ToString() != config.ToString()) {
     throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
                           model.config().ToString() + "', not the --config '" + config.ToString() +
@@ -521,8 +531,9 @@ void SetupTrain(CLI::App& app) {
       "semantic loss weights: none (reference) | sqrt-inverse | inverse (of class frequency)");
   app.add_option("--init", a->init,
                  "start from these stage-1 weights (fine-tuning; same --config, or the same with "
-                 "rgb=0 to fine-tune a colour model into a geometry-only one; a checkpoint "
-                 "in --out still takes precedence)");
+                 "rgb=0 to fine-tune a colour model into a geometry-only one, or with another "
+                 "scale to fine-tune it at another voxel size; a checkpoint in --out still "
+                 "takes precedence)");
   app.add_flag("--lr-by-time", a->lr_by_time,
                "with --max-minutes: decay the learning rate over the time budget rather than "
                "the epochs (hosts of unknown speed)");

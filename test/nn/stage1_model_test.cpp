@@ -348,6 +348,53 @@ TEST(Stage1Model, AverageIsTheMeanOfTheWeights) {
   fs::remove_all(dir);
 }
 
+TEST(Stage1Model, LoadingAtAnotherScaleKeepsEveryTensorAndChangesOnlyTheGrid) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "dimr_stage1_rescale_test";
+  fs::create_directories(dir);
+  const Stage1Config coarse_config = TinyConfig();  // scale 10
+  const std::string coarse_path = (dir / "coarse.pt").string();
+  Stage1Model(coarse_config, 11).Save(coarse_path);
+  const Stage1Model coarse = Stage1Model::Load(coarse_path);
+
+  const Stage1Model fine = Stage1Model::LoadAtScale(coarse_path, 20);
+  Stage1Config expect = coarse_config;
+  expect.input.scale = 20;
+  EXPECT_EQ(fine.config().ToString(), expect.ToString());
+  EXPECT_EQ(fine.NumParameters(), coarse.NumParameters());
+
+  const Stage1Sample room = TinyRoom(12);
+  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
+    double d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
+    return d;
+  };
+  const Stage1Output at10 = coarse.Predict(room);
+  const Stage1Output at20 = fine.Predict(room);
+  // The grid changed: the outputs are stored per voxel row (25 per row), and twice as many
+  // voxels per metre give more occupied voxels on the same points ...
+  EXPECT_EQ(at10.semantic_prob.size() % 25, 0u);
+  EXPECT_GT(at20.semantic_prob.size(), at10.semantic_prob.size() * 5 / 4);
+  // ... but every parameter and buffer was carried: back at scale 10 the model is the original
+  // (a tensor left at its fresh initialisation would change these).
+  const std::string fine_path = (dir / "fine.pt").string();
+  fine.Save(fine_path);
+  const Stage1Output back = Stage1Model::LoadAtScale(fine_path, 10).Predict(room);
+  EXPECT_LT(max_diff(back.semantic_prob, at10.semantic_prob), 1e-6);
+  EXPECT_LT(max_diff(back.heading_prob, at10.heading_prob), 1e-6);
+  EXPECT_EQ(back.semantic, at10.semantic);
+
+  try {
+    Stage1Model::LoadAtScale(coarse_path, -5);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("coarse.pt"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("scale"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Stage1Model::LoadAtScale((dir / "missing.pt").string(), 20), ParseError);
+  fs::remove_all(dir);
+}
+
 TEST(Stage1Model, DroppingTheColourInputIsExactForGreyClouds) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / "dimr_stage1_drop_colour_test";

@@ -224,6 +224,14 @@ class Stage1Model {
   // Throws dimr::InvalidArgument for a model without colour input, dimr::ParseError as Load.
   static Stage1Model LoadWithoutColour(const std::string& path);
 
+  // The model of `path` at another input resolution (`scale` voxels per metre): every parameter
+  // and buffer as stored, only the voxel size of the configuration changed (no tensor's shape
+  // depends on it). The start of a fine-tune at a finer or coarser grid (`dimr train stage1
+  // --config 'scale=33 ...' --init SCALE_20_MODEL`): the 3x3x3 kernels then span a smaller
+  // neighbourhood, which the fine-tune has to adapt to. Throws dimr::InvalidArgument for a
+  // scale outside (0, 1000], dimr::ParseError as Load.
+  static Stage1Model LoadAtScale(const std::string& path, double scale);
+
   // Trains on `train`. `log` is called every step; `on_epoch` every validate_every_epochs epochs
   // (and after the last) with the model in eval mode; the metrics it returns are printed with
   // the epoch (the caller logs them). Returns the step logs of this call.
