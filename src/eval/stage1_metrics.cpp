@@ -81,6 +81,23 @@ void Stage1MetricsAccumulator::Add(const Stage1SceneEval& s) {
   ++scenes_;
 }
 
+double SupportedMiou(const Stage1Metrics& m, int min_objects, int* classes) {
+  if (min_objects < 0) {
+    throw InvalidArgument("SupportedMiou: min_objects must be >= 0, got " +
+                          std::to_string(min_objects));
+  }
+  double sum = 0;
+  int n = 0;
+  const std::size_t nc = std::min(m.gt_objects.size(), m.semantic.iou.size());
+  for (std::size_t c = 0; c < nc; ++c) {
+    if (m.semantic.tp[c] + m.semantic.fn[c] == 0 || m.gt_objects[c] < min_objects) continue;
+    sum += m.semantic.iou[c];
+    ++n;
+  }
+  if (classes) *classes = n;
+  return n ? sum / n : 0.0;
+}
+
 Stage1Metrics Stage1MetricsAccumulator::Result() const {
   Stage1Metrics r;
   r.scenes = scenes_;

@@ -167,7 +167,10 @@ std::string Fmt(double v) {
   return b;
 }
 
-void PrintEval(const Stage1EvalRun& r) {
+// Classes with fewer GT objects than this are left out of the "supported" mean (--min-objects).
+constexpr int kDefaultMinObjects = 10;
+
+void PrintEval(const Stage1EvalRun& r, int min_objects = kDefaultMinObjects) {
   std::printf("%d scenes, %lld points; network %.1f s, clustering %.1f s\n", r.scenes, r.points,
               r.network_s, r.cluster_s);
   std::printf(
@@ -191,6 +194,10 @@ void PrintEval(const Stage1EvalRun& r) {
       "\nsemantic mIoU over the %d classes present: %.4f (all predicted/present: %.4f), "
       "accuracy %.4f\n",
       r.classes_present, r.miou_present, r.semantic.miou, r.semantic.accuracy);
+  int supported = 0;
+  const double supported_miou = eval::SupportedMiou(r, min_objects, &supported);
+  std::printf("semantic mIoU over the %d classes with >= %d GT objects: %.4f\n", supported,
+              min_objects, supported_miou);
   std::printf("\n| CAD class | AP | AP@50 | AP@25 | GT instances |\n|---|---|---|---|---|\n");
   const auto& cad = data::CadClassNames();
   int gt_total = 0;
@@ -205,7 +212,7 @@ void PrintEval(const Stage1EvalRun& r) {
   std::printf("\nmedian heading error of matched CAD instances: %.1f deg\n", r.heading_error_deg);
 }
 
-nlohmann::json EvalJson(const Stage1EvalRun& r) {
+nlohmann::json EvalJson(const Stage1EvalRun& r, int min_objects = kDefaultMinObjects) {
   nlohmann::json j;
   auto num = [](double v) { return std::isnan(v) ? nlohmann::json(nullptr) : nlohmann::json(v); };
   j["scenes"] = r.scenes;
@@ -216,6 +223,10 @@ nlohmann::json EvalJson(const Stage1EvalRun& r) {
   j["classes_present"] = r.classes_present;
   j["miou"] = r.semantic.miou;
   j["accuracy"] = r.semantic.accuracy;
+  int supported = 0;
+  j["miou_supported"] = eval::SupportedMiou(r, min_objects, &supported);
+  j["classes_supported"] = supported;
+  j["supported_min_objects"] = min_objects;
   const auto& names = data::RfsClassNames();
   for (int c = 0; c < nn::kStage1Classes; ++c) {
     j["semantic_iou"][names[c]] = num(r.semantic.iou[c]);
@@ -548,6 +559,7 @@ struct EvalArgs {
   std::vector<std::string> scans;  // scene sets (LoadSceneSets)
   std::string json, render_dir;
   int limit = 0, render = 0, threads = 2;
+  int min_objects = kDefaultMinObjects;
   std::string ceiling = "auto";
 };
 
@@ -574,13 +586,13 @@ void RunEval(const EvalArgs& a) {
               passes.c_str(), inf.cluster_min_points, inf.nms_iou, inf.min_points);
   const Stage1EvalRun r =
       EvaluateScenes(segmenter, scenes, a.render > 0, CeilingFromFlag(a.ceiling));
-  PrintEval(r);
+  PrintEval(r, a.min_objects);
   std::printf("ceiling removed in %d of %zu scenes (%zu points; --ceiling %s)\n", r.ceilings,
               scenes.size(), r.ceiling_points, a.ceiling.c_str());
   if (!a.json.empty()) {
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");
-    nlohmann::json j = EvalJson(r);
+    nlohmann::json j = EvalJson(r, a.min_objects);
     j["clustering_passes"] = passes;
     j["nms_iou"] = inf.nms_iou;
     j["min_points"] = inf.min_points;
@@ -614,6 +626,11 @@ void SetupEval(CLI::App& app) {
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
+  app.add_option("--min-objects", a->min_objects,
+                 "also print the semantic mean over the classes with at least this many GT "
+                 "objects (JSON miou_supported), a mean less moved by classes that rest on one "
+                 "or two objects")
+      ->check(CLI::NonNegativeNumber);
   AddCeilingFlag(app, &a->ceiling);
   app.callback([a]() { RunEval(*a); });
 }

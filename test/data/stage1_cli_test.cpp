@@ -68,7 +68,7 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   // Evaluation: JSON with every point counted, metrics in range, one PNG.
   std::tie(rc, out) =
       RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin --json " + d +
-             "/eval.json --render 1 --render-dir " + d + "/png");
+             "/eval.json --render 1 --render-dir " + d + "/png --min-objects 0");
   ASSERT_EQ(rc, 0) << out;
   const nlohmann::json j = nlohmann::json::parse(ReadFileText(d + "/eval.json"));
   EXPECT_EQ(j["scenes"].get<int>(), 2);
@@ -78,6 +78,10 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_GE(j["accuracy"].get<double>(), 0.0);
   EXPECT_GT(j["classes_present"].get<int>(), 2);  // at least wall, floor and one object class
   EXPECT_TRUE(j["instance"].contains("chair"));
+  // --min-objects 0: every class present is "supported", so that mean is the present mean.
+  EXPECT_EQ(j["supported_min_objects"].get<int>(), 0);
+  EXPECT_EQ(j["classes_supported"].get<int>(), j["classes_present"].get<int>());
+  EXPECT_NEAR(j["miou_supported"].get<double>(), j["miou_present"].get<double>(), 1e-12);
   // Support: both rooms have a floor; the same rooms twice (below) count twice.
   EXPECT_EQ(j["semantic_support"]["floor"]["scenes"].get<int>(), 2);
   EXPECT_GT(j["semantic_support"]["floor"]["points"].get<long long>(), 0);
@@ -102,6 +106,13 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_EQ(js["points"].get<long long>(), 2 * points);
   EXPECT_NEAR(js["miou_present"].get<double>(), j["miou_present"].get<double>(), 1e-9);
   EXPECT_EQ(js["semantic_support"]["floor"]["scenes"].get<int>(), 4);
+  // The default floor of 10 objects: only classes with that many objects in the 4 rooms count.
+  EXPECT_EQ(js["supported_min_objects"].get<int>(), 10);
+  int expect_supported = 0;
+  for (const auto& [name, sup] : js["semantic_support"].items()) {
+    if (sup["points"].get<long long>() > 0 && sup["objects"].get<int>() >= 10) ++expect_supported;
+  }
+  EXPECT_EQ(js["classes_supported"].get<int>(), expect_supported);
   EXPECT_EQ(js["semantic_support"]["chair"]["objects"].get<int>(),
             2 * j["semantic_support"]["chair"]["objects"].get<int>());
   EXPECT_EQ(js["instance"]["chair"]["gt_instances"].get<int>(),
@@ -110,6 +121,10 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
                              "/cache.bin@3 --json " + d + "/eval_rep.json");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_EQ(nlohmann::json::parse(ReadFileText(d + "/eval_rep.json"))["scenes"].get<int>(), 6);
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --min-objects -1");
+  EXPECT_NE(rc, 0) << out;
+  EXPECT_NE(out.find("min-objects"), std::string::npos) << out;
   std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin@2 --train " + d +
                              "/cache.bin --out " + d + "/model_sets" +
                              " --config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25' --epochs 1 "

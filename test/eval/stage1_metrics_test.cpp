@@ -108,6 +108,29 @@ TEST(Stage1Metrics, SupportCountsObjectsScenesAndCadInstances) {
   EXPECT_EQ(m.instances.gt_instances[5], 0);  // the 50-point cabinet is below the AP's 100 points
 }
 
+TEST(Stage1Metrics, SupportedMiouAveragesOnlyClassesWithEnoughObjects) {
+  Stage1Metrics m;
+  m.semantic.iou = {0.9, 0.1, 0.8, 0.6, std::nan("")};
+  m.semantic.tp = {100, 5, 50, 40, 0};
+  m.semantic.fn = {10, 5, 10, 10, 0};
+  m.semantic.fp = {0, 0, 0, 0, 0};
+  m.gt_objects = {0, 1, 12, 10, 30};  // stuff without ids, one object, 12, exactly 10, absent
+  int n = -1;
+  // >= 10 objects: classes 2 and 3 (class 4 has objects but no GT points).
+  EXPECT_NEAR(SupportedMiou(m, 10, &n), (0.8 + 0.6) / 2, 1e-12);
+  EXPECT_EQ(n, 2);
+  EXPECT_NEAR(SupportedMiou(m, 11, &n), 0.8, 1e-12);
+  EXPECT_EQ(n, 1);
+  // >= 1 object drops the stuff class; >= 0 is every class present.
+  EXPECT_NEAR(SupportedMiou(m, 1, &n), (0.1 + 0.8 + 0.6) / 3, 1e-12);
+  EXPECT_EQ(n, 3);
+  EXPECT_NEAR(SupportedMiou(m, 0, &n), (0.9 + 0.1 + 0.8 + 0.6) / 4, 1e-12);
+  EXPECT_EQ(n, 4);
+  EXPECT_EQ(SupportedMiou(m, 31, &n), 0.0);
+  EXPECT_EQ(n, 0);
+  EXPECT_THROW(SupportedMiou(m, -1), InvalidArgument);
+}
+
 TEST(Stage1Metrics, InconsistentScenesNameTheScene) {
   Stage1MetricsAccumulator acc;
   acc.Add(Scene());

@@ -53,6 +53,13 @@ struct Stage1Metrics {
   double heading_error_deg = 0;
 };
 
+// The semantic mean over the classes with at least `min_objects` GT objects (gt_objects; stuff
+// without instance ids has none and is left out for min_objects > 0): a class resting on one or
+// two objects weighs as much in miou_present as one with fifty, so this mean tracks a model
+// with less sampling noise (docs/stage1.md). `classes` (optional) receives how many classes it
+// averages; 0 classes give 0. Throws dimr::InvalidArgument for min_objects < 0.
+double SupportedMiou(const Stage1Metrics& m, int min_objects, int* classes = nullptr);
+
 class Stage1MetricsAccumulator {
  public:
   explicit Stage1MetricsAccumulator(int num_semantic = 25, int num_cad = 8);
