@@ -103,16 +103,10 @@ Stage1Metrics Stage1MetricsAccumulator::Result() const {
   r.scenes = scenes_;
   r.points = static_cast<long long>(gt_sem_.size());
   r.semantic = SemanticIou(gt_sem_, pred_sem_, num_semantic_);
-  double sum = 0;
-  for (int c = 0; c < num_semantic_; ++c) {
-    if (r.semantic.tp[c] + r.semantic.fn[c] > 0) {
-      sum += r.semantic.iou[c];
-      ++r.classes_present;
-    }
-  }
-  r.miou_present = r.classes_present ? sum / r.classes_present : 0;
   r.gt_objects = gt_objects_;
   r.gt_scenes = gt_scenes_;
+  // Every class present has >= 0 objects: the present mean is the supported mean at 0.
+  r.miou_present = SupportedMiou(r, 0, &r.classes_present);
   const int nc = num_semantic_;
   std::vector<long long> confusion(static_cast<std::size_t>(nc) * nc, 0);
   for (std::size_t i = 0; i < gt_sem_.size(); ++i) {

@@ -585,8 +585,8 @@ Stage1Model Stage1Model::LoadWithoutColour(const std::string& path) {
 }
 
 Stage1Model Stage1Model::LoadAtScale(const std::string& path, double scale) {
-  const Stage1Model source = Load(path);
-  Stage1Config config = source.config();
+  Stage1Model model = Load(path);
+  Stage1Config config = model.config();
   config.input.scale = scale;
   try {
     config.Validate();
@@ -594,19 +594,10 @@ Stage1Model Stage1Model::LoadAtScale(const std::string& path, double scale) {
     throw InvalidArgument("stage1: cannot load '" + path + "' at scale " + std::to_string(scale) +
                           ": " + e.what());
   }
-  // No tensor's shape depends on the voxel size: every parameter and buffer (BatchNorm running
-  // statistics included) is copied as it is.
-  Stage1Model rescaled(config);
-  torch::NoGradGuard no_grad;
-  const auto source_params = source.impl_->net->named_parameters();
-  const auto source_buffers = source.impl_->net->named_buffers();
-  for (auto& item : rescaled.impl_->net->named_parameters()) {
-    item.value().copy_(source_params[item.key()]);
-  }
-  for (auto& item : rescaled.impl_->net->named_buffers()) {
-    item.value().copy_(source_buffers[item.key()]);
-  }
-  return rescaled;
+  // The network never reads the voxel size (only the voxelisation of its input does), so the
+  // loaded tensors, BatchNorm statistics included, serve the new grid as they are.
+  model.impl_->config = config;
+  return model;
 }
 
 Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {
