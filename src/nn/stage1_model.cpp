@@ -22,6 +22,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 
 #include "dimr/core/config_fields.h"
@@ -598,6 +599,65 @@ Stage1Model Stage1Model::LoadAtScale(const std::string& path, double scale) {
   // loaded tensors, BatchNorm statistics included, serve the new grid as they are.
   model.impl_->config = config;
   return model;
+}
+
+Stage1Model Stage1Model::LoadDeeper(const std::string& path, int reps) {
+  const Stage1Model shallow = Load(path);
+  const int stored = shallow.config().reps;
+  if (reps <= stored) {
+    throw InvalidArgument("stage1: cannot deepen '" + path + "' to reps=" + std::to_string(reps) +
+                          ": it already has reps=" + std::to_string(stored));
+  }
+  Stage1Config config = shallow.config();
+  config.reps = reps;
+  config.Validate();
+  Stage1Model deep(config);
+  torch::NoGradGuard no_grad;
+  // A residual block's name holds ".block<k>." (k = its index within its level and side).
+  auto block_index = [](const std::string& name) -> int {
+    static const std::regex kBlock(R"(\.block([0-9]+)\.)");
+    std::smatch m;
+    return std::regex_search(name, m, kBlock) ? std::stoi(m[1].str()) : -1;
+  };
+  auto carry = [&](const torch::OrderedDict<std::string, torch::Tensor>& from,
+                   torch::OrderedDict<std::string, torch::Tensor>& to) {
+    std::size_t carried = 0;
+    for (auto& item : to) {
+      const torch::Tensor* source = from.find(item.key());
+      if (block_index(item.key()) >= stored) {
+        if (source != nullptr) {
+          throw InvalidArgument("stage1: cannot deepen '" + path + "': tensor '" + item.key() +
+                                "' belongs to an added block but is stored");
+        }
+        // conv_branch = BN, ReLU, conv0 ("2"), BN, ReLU, conv1 ("5"): zero conv1.
+        if (item.key().find("conv_branch.5.weight") != std::string::npos) item.value().zero_();
+        continue;
+      }
+      if (source == nullptr || source->sizes() != item.value().sizes()) {
+        std::ostringstream msg;
+        msg << "stage1: cannot deepen '" << path << "': tensor '" << item.key() << "' ";
+        if (source == nullptr) {
+          msg << "is not stored";
+        } else {
+          msg << "has shape " << source->sizes();
+        }
+        msg << ", the deeper network expects " << item.value().sizes();
+        throw InvalidArgument(msg.str());
+      }
+      item.value().copy_(*source);
+      ++carried;
+    }
+    if (carried != from.size()) {
+      throw InvalidArgument("stage1: cannot deepen '" + path +
+                            "': " + std::to_string(from.size() - carried) +
+                            " stored tensors have no place in the deeper network");
+    }
+  };
+  auto params = deep.impl_->net->named_parameters();
+  carry(shallow.impl_->net->named_parameters(), params);
+  auto buffers = deep.impl_->net->named_buffers();
+  carry(shallow.impl_->net->named_buffers(), buffers);
+  return deep;
 }
 
 Stage1LossTerms Stage1Model::EvaluateLoss(const Stage1Batch& batch) const {

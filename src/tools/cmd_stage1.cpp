@@ -438,6 +438,18 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
     std::printf("--init %s: voxel size %.4g m -> %.4g m (scale %g -> %g)\n", a.init.c_str(),
                 1.0 / from, 1.0 / config.input.scale, from, config.input.scale);
   }
+  nn::Stage1Config init_deeper = model.config();
+  init_deeper.reps = config.reps;
+  if (!a.init.empty() && model.config().reps < config.reps &&
+      init_deeper.ToString() == config.ToString()) {
+    // A fine-tune with more residual blocks: the added blocks start as the identity.
+    const int from = model.config().reps;
+    model = nn::Stage1Model::LoadDeeper(a.init, config.reps);
+    std::printf(
+        "--init %s: residual blocks per level and side %d -> %d (added blocks start as "
+        "the identity)\n",
+        a.init.c_str(), from, config.reps);
+  }
   if (model.config().ToString() != config.ToString()) {
     throw InvalidArgument("--init '" + a.init + "' holds a model of configuration '" +
                           model.config().ToString() + "', not the --config '" + config.ToString() +

@@ -395,6 +395,61 @@ TEST(Stage1Model, LoadingAtAnotherScaleKeepsEveryTensorAndChangesOnlyTheGrid) {
   fs::remove_all(dir);
 }
 
+TEST(Stage1Model, DeepeningAddsIdentityBlocksAndKeepsThePredictions) {
+  namespace fs = std::filesystem;
+  const fs::path dir = fs::temp_directory_path() / "dimr_stage1_deepen_test";
+  fs::create_directories(dir);
+  const Stage1Config shallow_config = TinyConfig();  // reps 1, widths 8,16,24
+  const std::string shallow_path = (dir / "shallow.pt").string();
+  Stage1Model(shallow_config, 13).Save(shallow_path);
+  const Stage1Model shallow = Stage1Model::Load(shallow_path);
+
+  const Stage1Model deep = Stage1Model::LoadDeeper(shallow_path, 2);
+  Stage1Config expect = shallow_config;
+  expect.reps = 2;
+  EXPECT_EQ(deep.config().ToString(), expect.ToString());
+  // One more (c, c) residual block on each side of each level: 2 BatchNorms (2c weights + 2c
+  // biases) and two 3x3x3 c -> c convolutions.
+  std::int64_t added = 0;
+  for (std::int64_t c : shallow_config.widths) {
+    const std::int64_t per_block = 4 * c + 2 * 27 * c * c;
+    added += (c == shallow_config.widths.back() ? 1 : 2) * per_block;
+  }
+  EXPECT_EQ(deep.NumParameters(), shallow.NumParameters() + added);
+
+  const Stage1Sample room = TinyRoom(12);
+  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
+    double d = 0;
+    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
+    return d;
+  };
+  const Stage1Output before = shallow.Predict(room);
+  const Stage1Output after = deep.Predict(room);
+  ASSERT_EQ(after.semantic_prob.size(), before.semantic_prob.size());
+  EXPECT_LT(max_diff(after.semantic_prob, before.semantic_prob), 1e-5);
+  ASSERT_EQ(after.offsets.size(), before.offsets.size());
+  double offset_diff = 0;
+  for (std::size_t i = 0; i < after.offsets.size(); ++i) {
+    offset_diff = std::max(offset_diff, double((after.offsets[i] - before.offsets[i]).norm()));
+  }
+  EXPECT_LT(offset_diff, 1e-5);
+  EXPECT_EQ(after.semantic, before.semantic);
+  // A fresh reps=2 network (the added blocks not zeroed) predicts differently: the equality
+  // above is the carried tensors' and the zeroed convolutions' doing.
+  const Stage1Output fresh = Stage1Model(expect, 13).Predict(room);
+  EXPECT_GT(max_diff(fresh.semantic_prob, before.semantic_prob), 1e-3);
+
+  try {
+    Stage1Model::LoadDeeper(shallow_path, 1);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("shallow.pt"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("reps=1"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(Stage1Model::LoadDeeper((dir / "missing.pt").string(), 2), ParseError);
+  fs::remove_all(dir);
+}
+
 TEST(Stage1Model, DroppingTheColourInputIsExactForGreyClouds) {
   namespace fs = std::filesystem;
   const fs::path dir = fs::temp_directory_path() / "dimr_stage1_drop_colour_test";

@@ -232,6 +232,17 @@ class Stage1Model {
   // scale outside (0, 1000], dimr::ParseError as Load.
   static Stage1Model LoadAtScale(const std::string& path, double scale);
 
+  // The model of `path` with `reps` residual blocks per level and side instead of its stored
+  // (smaller) number, computing exactly the same function: the stored blocks keep their
+  // tensors, every added block (index >= the stored reps, on the way down and up of every
+  // level) gets its last convolution zeroed, so its residual branch adds nothing and the
+  // block is the identity until training moves it (the function-preserving deepening of
+  // Net2DeeperNet). The start of a fine-tune with more capacity (`dimr train stage1 --config
+  // '... reps=2 ...' --init REPS_1_MODEL`). Throws dimr::InvalidArgument for `reps` not above
+  // the stored number, or a stored tensor the deeper network lacks or shapes differently;
+  // dimr::ParseError as Load.
+  static Stage1Model LoadDeeper(const std::string& path, int reps);
+
   // Trains on `train`. `log` is called every step; `on_epoch` every validate_every_epochs epochs
   // (and after the last) with the model in eval mode; the metrics it returns are printed with
   // the epoch (the caller logs them). Returns the step logs of this call.
