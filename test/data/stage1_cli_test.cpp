@@ -132,6 +132,23 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("after 6 steps"), std::string::npos) << out;  // 3 x 2 scenes, batch 1
   EXPECT_NE(ReadFileText(d + "/model_sets/model.yaml").find("train_scenes: 6"), std::string::npos);
+  // --init into a deeper --config (reps 1 -> 2): the added blocks start as the identity; a
+  // --config that differs in anything else is refused, naming both configurations.
+  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin --out " + d +
+                             "/model_deep --init " + model + "/stage1.pt" +
+                             " --config 'scale=10 rgb=0 widths=8,16 reps=2 classes=25' --epochs 1 "
+                             "--batch 1 --threads 1 --quiet --seed 3");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("residual blocks per level and side 1 -> 2"), std::string::npos) << out;
+  EXPECT_NE(ReadFileText(d + "/model_deep/model.yaml")
+                .find("architecture: \"scale=10 rgb=0 widths=8,16 reps=2 classes=25\""),
+            std::string::npos);
+  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin --out " + d +
+                             "/model_bad --init " + model + "/stage1.pt" +
+                             " --config 'scale=10 rgb=0 widths=8,24 reps=2 classes=25' --epochs 1 "
+                             "--batch 1 --threads 1 --quiet --seed 3");
+  EXPECT_NE(rc, 0) << out;
+  EXPECT_NE(out.find("widths=8,16 reps=1"), std::string::npos) << out;
   for (const char* bad : {"@0", "@x", "@101"}) {
     std::tie(rc, out) =
         RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d + "/cache.bin" + bad);
