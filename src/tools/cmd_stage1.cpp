@@ -23,6 +23,7 @@
 #include "dimr/data/synthscan.h"
 #include "dimr/eval/stage1_metrics.h"
 #include "dimr/geometry/error.h"
+#include "dimr/geometry/ply_io.h"
 #include "dimr/nn/stage1_model.h"
 #include "dimr/pipeline/calibration.h"
 #include "dimr/pipeline/ceiling.h"
@@ -120,6 +121,7 @@ struct Stage1EvalRun : eval::Stage1Metrics {
   int ceilings = 0;                // scenes in which a ceiling was found and removed
   std::size_t ceiling_points = 0;  // points removed with them
   std::vector<std::vector<pipeline::ScoredInstance>> predictions;  // per scene (if kept)
+  std::vector<std::vector<int>> pred_semantic;  // per scene, per point predicted RFS id (if kept)
 };
 
 // Every scene through the segmenter, scored against its labels.
@@ -150,6 +152,7 @@ Stage1EvalRun EvaluateScenes(const pipeline::Stage1Segmenter& segmenter,
     e.gt_instance = s.instance;
     for (const auto& g : s.instances)
       e.gt_instances.push_back({g.cad_class, g.has_heading, g.heading});
+    if (keep_predictions) run.pred_semantic.push_back(r.semantic);
     e.pred_semantic = std::move(r.semantic);
     for (const auto& p : r.instances)
       e.preds.push_back({p.points, p.cad_class, p.score, p.heading});
@@ -283,6 +286,45 @@ void RenderComparison(const nn::Stage1Sample& s, const std::vector<pipeline::Sco
   blit(a, 0);
   blit(b, a.width + gap);
   WritePng(path, w, h, img);
+}
+
+// One scene as a labelled point cloud for inspection outside dimr (CloudCompare, MeshLab, a
+// script): x y z, the input colour, and per point gt_label / pred_label (RFS-25 ids, -1 = none)
+// and gt_instance / pred_instance (-1 = none; predicted instances in the order the evaluation
+// scored them).
+void WriteLabelledCloud(const nn::Stage1Sample& s, const std::vector<int>& pred_semantic,
+                        const std::vector<pipeline::ScoredInstance>& pred,
+                        const std::string& path) {
+  const std::size_t n = s.points.size();
+  if (pred_semantic.size() != n) {
+    throw InvalidArgument("stage1 eval --dump: scene '" + s.name + "' has " + std::to_string(n) +
+                          " points but " + std::to_string(pred_semantic.size()) +
+                          " predicted labels");
+  }
+  geometry::PointCloud cloud;
+  cloud.points.reserve(n);
+  for (const auto& p : s.points) cloud.points.push_back(p.cast<double>());
+  if (s.colors.size() == n) {
+    cloud.colors.reserve(n);
+    for (const auto& c : s.colors) {
+      const Eigen::Vector3f v = (c.cwiseMax(0.f).cwiseMin(1.f) * 255.f).array().round();
+      cloud.colors.push_back(v.cast<std::uint8_t>());
+    }
+  }
+  std::vector<double> gt(n), pr(n), gt_inst(n), pr_inst(n, -1.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    gt[i] = s.semantic[i] >= 0 && s.semantic[i] < nn::kStage1Classes ? s.semantic[i] : -1;
+    pr[i] = pred_semantic[i];
+    gt_inst[i] = s.instance[i];
+  }
+  for (std::size_t k = 0; k < pred.size(); ++k) {
+    for (int i : pred[k].points) pr_inst[static_cast<std::size_t>(i)] = static_cast<double>(k);
+  }
+  cloud.SetAttribute("gt_label", geometry::ScalarType::kInt16, std::move(gt));
+  cloud.SetAttribute("pred_label", geometry::ScalarType::kInt16, std::move(pr));
+  cloud.SetAttribute("gt_instance", geometry::ScalarType::kInt32, std::move(gt_inst));
+  cloud.SetAttribute("pred_instance", geometry::ScalarType::kInt32, std::move(pr_inst));
+  geometry::WritePly(path, cloud);
 }
 
 std::string PassesText(const pipeline::Stage1InferenceConfig& c) {
@@ -569,8 +611,8 @@ void SetupTrain(CLI::App& app) {
 struct EvalArgs {
   InferenceArgs inference;
   std::vector<std::string> scans;  // scene sets (LoadSceneSets)
-  std::string json, render_dir;
-  int limit = 0, render = 0, threads = 2;
+  std::string json, render_dir, dump_dir;
+  int limit = 0, render = 0, dump = 0, threads = 2;
   int min_objects = kDefaultMinObjects;
   std::string ceiling = "auto";
 };
@@ -597,7 +639,7 @@ void RunEval(const EvalArgs& a) {
   std::printf("clustering passes %s, min %d points per cluster, NMS %.2f, keep > %d points\n",
               passes.c_str(), inf.cluster_min_points, inf.nms_iou, inf.min_points);
   const Stage1EvalRun r =
-      EvaluateScenes(segmenter, scenes, a.render > 0, CeilingFromFlag(a.ceiling));
+      EvaluateScenes(segmenter, scenes, a.render > 0 || a.dump > 0, CeilingFromFlag(a.ceiling));
   PrintEval(r, a.min_objects);
   std::printf("ceiling removed in %d of %zu scenes (%zu points; --ceiling %s)\n", r.ceilings,
               scenes.size(), r.ceiling_points, a.ceiling.c_str());
@@ -629,6 +671,15 @@ void RunEval(const EvalArgs& a) {
       std::printf("wrote %s\n", path.c_str());
     }
   }
+  if (a.dump > 0) {
+    const std::string dir = a.dump_dir.empty() ? "out/stage1_dump" : a.dump_dir;
+    std::filesystem::create_directories(dir);
+    for (int k = 0; k < std::min<int>(a.dump, static_cast<int>(scenes.size())); ++k) {
+      const std::string path = dir + "/" + scenes[k].name + "_labels.ply";
+      WriteLabelledCloud(scenes[k], r.pred_semantic[k], r.predictions[k], path);
+      std::printf("wrote %s\n", path.c_str());
+    }
+  }
 }
 
 void SetupEval(CLI::App& app) {
@@ -638,6 +689,11 @@ void SetupEval(CLI::App& app) {
   app.add_option("--json", a->json, "write the metrics as JSON");
   app.add_option("--render", a->render, "write GT-vs-prediction top-down PNGs of the first N");
   app.add_option("--render-dir", a->render_dir, "folder of the PNGs (default out/stage1_render)");
+  app.add_option("--dump", a->dump,
+                 "write the first N scenes as labelled PLY clouds for inspection: x y z, colour, "
+                 "gt_label / pred_label (RFS-25 ids, -1 none), gt_instance / pred_instance")
+      ->check(CLI::NonNegativeNumber);
+  app.add_option("--dump-dir", a->dump_dir, "folder of the clouds (default out/stage1_dump)");
   app.add_option("--min-objects", a->min_objects,
                  "also print the semantic mean over the classes with at least this many GT "
                  "objects (JSON miou_supported), a mean less moved by classes that rest on one "

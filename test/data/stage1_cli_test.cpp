@@ -93,6 +93,31 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
     ++pngs;
   }
   EXPECT_EQ(pngs, 1);
+  // --dump: the first scene as a labelled cloud, one vertex per point, GT labels as stored.
+  std::tie(rc, out) = RunCli("stage1 eval --model " + model + "/stage1.pt --scans " + d +
+                             "/cache.bin --limit 1 --dump 1 --dump-dir " + d + "/dump");
+  ASSERT_EQ(rc, 0) << out;
+  std::vector<fs::path> dumps;
+  for (const auto& e : fs::directory_iterator(d + "/dump")) dumps.push_back(e.path());
+  ASSERT_EQ(dumps.size(), 1u);
+  {
+    const std::string ply = ReadFileText(dumps[0]);
+    const std::size_t end = ply.find("end_header\n");
+    ASSERT_NE(end, std::string::npos);
+    const std::string header = ply.substr(0, end);
+    for (const char* prop : {"property short gt_label", "property short pred_label",
+                             "property int gt_instance", "property int pred_instance"}) {
+      EXPECT_NE(header.find(prop), std::string::npos) << header;
+    }
+    std::smatch vm;
+    ASSERT_TRUE(std::regex_search(header, vm, std::regex("element vertex ([0-9]+)"))) << header;
+    const long long vertices = std::stoll(vm[1]);
+    EXPECT_GT(vertices, 100);
+    EXPECT_LT(vertices, points);  // one of the two rooms
+    // Body: float xyz (+ uchar rgb if coloured) + short + short + int + int per vertex.
+    const long long body = static_cast<long long>(ply.size() - end - 11);
+    EXPECT_TRUE(body == vertices * 24 || body == vertices * 27) << body << " " << vertices;
+  }
   EXPECT_EQ(j["rotations"].get<int>(), 1);  // no card recommendation yet: plain inference
   EXPECT_FALSE(j["mirror"].get<bool>());
 
