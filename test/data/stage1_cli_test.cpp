@@ -159,19 +159,19 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   EXPECT_NE(ReadFileText(d + "/model_sets/model.yaml").find("train_scenes: 6"), std::string::npos);
   // --init into a deeper --config (reps 1 -> 2): the added blocks start as the identity; a
   // --config that differs in anything else is refused, naming both configurations.
-  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin --out " + d +
-                             "/model_deep --init " + model + "/stage1.pt" +
-                             " --config 'scale=10 rgb=0 widths=8,16 reps=2 classes=25' --epochs 1 "
-                             "--batch 1 --threads 1 --quiet --seed 3");
+  auto train_from_model = [&](const std::string& out_name, const std::string& config) {
+    return RunCli("train stage1 --train " + d + "/cache.bin --out " + d + "/" + out_name +
+                  " --init " + model + "/stage1.pt --config '" + config +
+                  "' --epochs 1 --batch 1 --threads 1 --quiet --seed 3");
+  };
+  std::tie(rc, out) =
+      train_from_model("model_deep", "scale=10 rgb=0 widths=8,16 reps=2 classes=25");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("residual blocks per level and side 1 -> 2"), std::string::npos) << out;
   EXPECT_NE(ReadFileText(d + "/model_deep/model.yaml")
                 .find("architecture: \"scale=10 rgb=0 widths=8,16 reps=2 classes=25\""),
             std::string::npos);
-  std::tie(rc, out) = RunCli("train stage1 --train " + d + "/cache.bin --out " + d +
-                             "/model_bad --init " + model + "/stage1.pt" +
-                             " --config 'scale=10 rgb=0 widths=8,24 reps=2 classes=25' --epochs 1 "
-                             "--batch 1 --threads 1 --quiet --seed 3");
+  std::tie(rc, out) = train_from_model("model_bad", "scale=10 rgb=0 widths=8,24 reps=2 classes=25");
   EXPECT_NE(rc, 0) << out;
   EXPECT_NE(out.find("widths=8,16 reps=1"), std::string::npos) << out;
   for (const char* bad : {"@0", "@x", "@101"}) {

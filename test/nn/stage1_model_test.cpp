@@ -55,6 +55,22 @@ Stage1Sample TinyRoom(std::uint64_t seed) {
   return s;
 }
 
+// Largest |a_i - b_i| over two equally long tables (probabilities of two predictions).
+double MaxAbsDiff(const std::vector<float>& a, const std::vector<float>& b) {
+  double d = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
+  return d;
+}
+
+// Largest distance between corresponding predicted offsets (metres).
+double MaxOffsetDiff(const Stage1Output& a, const Stage1Output& b) {
+  double d = 0;
+  for (std::size_t i = 0; i < a.offsets.size(); ++i) {
+    d = std::max<double>(d, (a.offsets[i] - b.offsets[i]).norm());
+  }
+  return d;
+}
+
 Stage1Config TinyConfig() {
   Stage1Config c;
   c.input.scale = 10;
@@ -175,11 +191,8 @@ TEST(Stage1Model, TorchOpsBackendTrainsLikeTheFusedPath) {
     EXPECT_NEAR(logs[1][i].loss.heading_cls, logs[0][i].loss.heading_cls, 1e-3) << "step " << i;
   }
   ASSERT_EQ(outs[0].offsets.size(), outs[1].offsets.size());
-  double max_diff = 0;
-  for (std::size_t i = 0; i < outs[0].offsets.size(); ++i) {
-    max_diff = std::max<double>(max_diff, (outs[0].offsets[i] - outs[1].offsets[i]).norm());
-  }
-  EXPECT_LT(max_diff, 1e-2);  // metres; Adam amplifies float-order noise a little
+  EXPECT_LT(MaxOffsetDiff(outs[0], outs[1]),
+            1e-2);  // metres; Adam amplifies float-order noise a little
 }
 
 // With lr_by_time the schedule follows the time budget: a budget already spent at the first step
@@ -278,11 +291,8 @@ TEST(Stage1Model, SaveLoadReproducesAndRejectsCorruptFiles) {
   model.Save((dir / "h.pt").string(), /*half=*/true);
   const Stage1Output h = Stage1Model::Load((dir / "h.pt").string()).Predict(s);
   const Stage1Output f = model.Predict(s);
-  double max_diff = 0;
-  for (std::size_t i = 0; i < f.semantic_prob.size(); ++i) {
-    max_diff = std::max(max_diff, std::abs(double(f.semantic_prob[i]) - h.semantic_prob[i]));
-  }
-  EXPECT_LT(max_diff, 0.02);
+  ASSERT_EQ(h.semantic_prob.size(), f.semantic_prob.size());
+  EXPECT_LT(MaxAbsDiff(f.semantic_prob, h.semantic_prob), 0.02);
   // Truncated file and garbage file.
   {
     std::ifstream in(path, std::ios::binary);
@@ -364,11 +374,6 @@ TEST(Stage1Model, LoadingAtAnotherScaleKeepsEveryTensorAndChangesOnlyTheGrid) {
   EXPECT_EQ(fine.NumParameters(), coarse.NumParameters());
 
   const Stage1Sample room = TinyRoom(12);
-  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
-    double d = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
-    return d;
-  };
   const Stage1Output at10 = coarse.Predict(room);
   const Stage1Output at20 = fine.Predict(room);
   // The grid changed: the outputs are stored per voxel row (25 per row), and twice as many
@@ -380,8 +385,8 @@ TEST(Stage1Model, LoadingAtAnotherScaleKeepsEveryTensorAndChangesOnlyTheGrid) {
   const std::string fine_path = (dir / "fine.pt").string();
   fine.Save(fine_path);
   const Stage1Output back = Stage1Model::LoadAtScale(fine_path, 10).Predict(room);
-  EXPECT_LT(max_diff(back.semantic_prob, at10.semantic_prob), 1e-6);
-  EXPECT_LT(max_diff(back.heading_prob, at10.heading_prob), 1e-6);
+  EXPECT_LT(MaxAbsDiff(back.semantic_prob, at10.semantic_prob), 1e-6);
+  EXPECT_LT(MaxAbsDiff(back.heading_prob, at10.heading_prob), 1e-6);
   EXPECT_EQ(back.semantic, at10.semantic);
 
   try {
@@ -418,26 +423,17 @@ TEST(Stage1Model, DeepeningAddsIdentityBlocksAndKeepsThePredictions) {
   EXPECT_EQ(deep.NumParameters(), shallow.NumParameters() + added);
 
   const Stage1Sample room = TinyRoom(12);
-  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
-    double d = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
-    return d;
-  };
   const Stage1Output before = shallow.Predict(room);
   const Stage1Output after = deep.Predict(room);
   ASSERT_EQ(after.semantic_prob.size(), before.semantic_prob.size());
-  EXPECT_LT(max_diff(after.semantic_prob, before.semantic_prob), 1e-5);
+  EXPECT_LT(MaxAbsDiff(after.semantic_prob, before.semantic_prob), 1e-5);
   ASSERT_EQ(after.offsets.size(), before.offsets.size());
-  double offset_diff = 0;
-  for (std::size_t i = 0; i < after.offsets.size(); ++i) {
-    offset_diff = std::max(offset_diff, double((after.offsets[i] - before.offsets[i]).norm()));
-  }
-  EXPECT_LT(offset_diff, 1e-5);
+  EXPECT_LT(MaxOffsetDiff(after, before), 1e-5);
   EXPECT_EQ(after.semantic, before.semantic);
   // A fresh reps=2 network (the added blocks not zeroed) predicts differently: the equality
   // above is the carried tensors' and the zeroed convolutions' doing.
   const Stage1Output fresh = Stage1Model(expect, 13).Predict(room);
-  EXPECT_GT(max_diff(fresh.semantic_prob, before.semantic_prob), 1e-3);
+  EXPECT_GT(MaxAbsDiff(fresh.semantic_prob, before.semantic_prob), 1e-3);
 
   try {
     Stage1Model::LoadDeeper(shallow_path, 1);
@@ -477,15 +473,10 @@ TEST(Stage1Model, DroppingTheColourInputIsExactForGreyClouds) {
   const Stage1Output c_grey = colour.Predict(grey);
   const Stage1Output c_col = colour.Predict(coloured);
   ASSERT_EQ(g.semantic_prob.size(), c_grey.semantic_prob.size());
-  auto max_diff = [](const std::vector<float>& a, const std::vector<float>& b) {
-    double d = 0;
-    for (std::size_t i = 0; i < a.size(); ++i) d = std::max(d, std::abs(double(a[i]) - b[i]));
-    return d;
-  };
   // The colour weights matter (a zero or dropped colour input would not change this) ...
-  EXPECT_GT(max_diff(c_col.semantic_prob, c_grey.semantic_prob), 1e-3);
+  EXPECT_GT(MaxAbsDiff(c_col.semantic_prob, c_grey.semantic_prob), 1e-3);
   // ... and the geometry-only copy is the colour model on grey input: every head.
-  EXPECT_LT(max_diff(g.semantic_prob, c_grey.semantic_prob), 1e-5);
+  EXPECT_LT(MaxAbsDiff(g.semantic_prob, c_grey.semantic_prob), 1e-5);
   ASSERT_EQ(g.offsets.size(), c_grey.offsets.size());
   double offset_diff = 0;
   for (std::size_t i = 0; i < g.offsets.size(); ++i) {
@@ -493,10 +484,10 @@ TEST(Stage1Model, DroppingTheColourInputIsExactForGreyClouds) {
         std::max(offset_diff, double((g.offsets[i] - c_grey.offsets[i]).cwiseAbs().maxCoeff()));
   }
   EXPECT_LT(offset_diff, 1e-5);
-  EXPECT_LT(max_diff(g.heading_prob, c_grey.heading_prob), 1e-5);
+  EXPECT_LT(MaxAbsDiff(g.heading_prob, c_grey.heading_prob), 1e-5);
   EXPECT_EQ(g.semantic, c_grey.semantic);
   // Its colours are ignored: any colours, the same output.
-  EXPECT_LT(max_diff(geometry.Predict(coloured).semantic_prob, g.semantic_prob), 1e-6);
+  EXPECT_LT(MaxAbsDiff(geometry.Predict(coloured).semantic_prob, g.semantic_prob), 1e-6);
 
   // A model without colour input has nothing to drop; the message names the file.
   const std::string plain = (dir / "plain.pt").string();
