@@ -290,6 +290,18 @@ void Stage1Sample::Validate() const {
     }
     if (!std::isfinite(in.heading)) throw InvalidArgument(field + ".heading is not finite");
   }
+  if (!weight.empty()) {
+    if (weight.size() != n) {
+      throw InvalidArgument(who + ": weight has " + std::to_string(weight.size()) +
+                            " entries for " + std::to_string(n) + " points");
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!(weight[i] > 0) || !std::isfinite(weight[i])) {
+        throw InvalidArgument(who + ": weight[" + std::to_string(i) +
+                              "] = " + std::to_string(weight[i]) + " is not finite and > 0");
+      }
+    }
+  }
 }
 
 void WriteStage1Samples(const std::string& path, const std::vector<Stage1Sample>& samples) {
@@ -377,6 +389,119 @@ std::vector<Stage1Sample> ReadStage1Samples(const std::string& path) {
     throw ParseError(path, std::to_string(r.Remaining()) + " trailing bytes after the last sample");
   }
   return out;
+}
+
+// ---------------------------------------------------------------- hard examples
+void InWallPlaneConfig::Validate() const {
+  auto positive = [](double v, const char* name) {
+    if (!(v > 0) || !std::isfinite(v))
+      throw InvalidArgument(std::string("InWallPlaneConfig: '") + name +
+                            "' must be finite and > 0");
+  };
+  positive(distance, "distance");
+  positive(max_thickness, "max_thickness");
+  if (!(margin >= 0) || !std::isfinite(margin))
+    throw InvalidArgument("InWallPlaneConfig: 'margin' must be finite and >= 0");
+  if (min_points < 3) throw InvalidArgument("InWallPlaneConfig: 'min_points' must be >= 3");
+  if (!(min_instance_share >= 0 && min_instance_share <= 1))
+    throw InvalidArgument("InWallPlaneConfig: 'min_instance_share' must be in [0, 1]");
+}
+
+std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
+                                            const InWallPlaneConfig& config) {
+  sample.Validate();
+  config.Validate();
+  constexpr int kWall = 0, kFloor = 1;  // RFS classes (core/labels.h)
+  const std::size_t n = sample.points.size();
+  std::vector<std::uint8_t> out(n, 0);
+  // Wall points per instance.
+  std::vector<std::vector<std::size_t>> members(sample.instances.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    if (sample.semantic[i] == kWall && sample.instance[i] >= 0)
+      members[sample.instance[i]].push_back(i);
+  }
+  struct Plane {
+    Eigen::Vector2d centre, normal, along;
+    double u0, u1, z0, z1;
+  };
+  std::vector<Plane> planes;
+  for (const auto& idx : members) {
+    if (static_cast<int>(idx.size()) < config.min_points) continue;
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (std::size_t i : idx) mean += sample.points[i].head<2>().cast<double>();
+    mean /= static_cast<double>(idx.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (std::size_t i : idx) {
+      const Eigen::Vector2d d = sample.points[i].head<2>().cast<double>() - mean;
+      cov += d * d.transpose();
+    }
+    cov /= static_cast<double>(idx.size());
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);  // ascending eigenvalues
+    if (std::sqrt(std::max(0.0, eig.eigenvalues()[0])) > config.max_thickness) continue;
+    Plane p;
+    p.centre = mean;
+    p.normal = eig.eigenvectors().col(0);
+    p.along = eig.eigenvectors().col(1);
+    p.u0 = p.z0 = INFINITY;
+    p.u1 = p.z1 = -INFINITY;
+    for (std::size_t i : idx) {
+      const double u = p.along.dot(sample.points[i].head<2>().cast<double>() - mean);
+      p.u0 = std::min(p.u0, u);
+      p.u1 = std::max(p.u1, u);
+      p.z0 = std::min(p.z0, static_cast<double>(sample.points[i].z()));
+      p.z1 = std::max(p.z1, static_cast<double>(sample.points[i].z()));
+    }
+    planes.push_back(p);
+  }
+  if (planes.empty()) return out;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int s = sample.semantic[i];
+    if (s == kStage1Ignore || s == kWall || s == kFloor) continue;
+    const Eigen::Vector3f& q = sample.points[i];
+    for (const Plane& p : planes) {
+      const Eigen::Vector2d d = q.head<2>().cast<double>() - p.centre;
+      const double u = p.along.dot(d);
+      if (std::abs(p.normal.dot(d)) <= config.distance && u >= p.u0 - config.margin &&
+          u <= p.u1 + config.margin && q.z() >= p.z0 - config.margin &&
+          q.z() <= p.z1 + config.margin) {
+        out[i] = 1;
+        break;
+      }
+    }
+  }
+  if (config.min_instance_share <= 0) return out;
+  // Keep the objects that are flat in a wall plane.
+  std::vector<std::size_t> total(sample.instances.size(), 0), inside(sample.instances.size(), 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const int k = sample.instance[i];
+    if (k < 0) continue;
+    ++total[k];
+    inside[k] += out[i];
+  }
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!out[i]) continue;
+    const int k = sample.instance[i];
+    if (k < 0 ||
+        static_cast<double>(inside[k]) < config.min_instance_share * static_cast<double>(total[k]))
+      out[i] = 0;
+  }
+  return out;
+}
+
+std::size_t SetInWallPlaneWeights(Stage1Sample* sample, float weight,
+                                  const InWallPlaneConfig& config) {
+  if (sample == nullptr) throw InvalidArgument("SetInWallPlaneWeights: null sample");
+  if (!(weight > 0) || !std::isfinite(weight)) {
+    throw InvalidArgument("SetInWallPlaneWeights: weight " + std::to_string(weight) +
+                          " is not finite and > 0");
+  }
+  sample->weight.clear();
+  const std::vector<std::uint8_t> in = InWallPlanePoints(*sample, config);
+  const std::size_t count = static_cast<std::size_t>(std::count(in.begin(), in.end(), 1));
+  if (weight == 1.0f) return count;
+  sample->weight.resize(in.size());
+  for (std::size_t i = 0; i < in.size(); ++i) sample->weight[i] = in[i] ? weight : 1.0f;
+  return count;
 }
 
 // ---------------------------------------------------------------- network frame
@@ -667,6 +792,7 @@ Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int 
       }
       out.semantic.push_back(src.semantic[i]);
       out.instance.push_back(new_index);
+      if (!out.weight.empty()) out.weight.push_back(1.0f);
     }
   }
   return out;
@@ -898,9 +1024,11 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
   const int C = batch.feature_channels;
   std::int64_t next_instance = 0;
   // Up front: a scene may take instances from the next one (instance mixing).
+  bool weighted = false;
   for (int b = 0; b < batch.batch_size; ++b) {
     if (samples[b] == nullptr)
       throw InvalidArgument("MakeStage1Batch: sample " + std::to_string(b) + " is null");
+    weighted = weighted || !samples[b]->weight.empty();
   }
   for (int b = 0; b < batch.batch_size; ++b) {
     const Stage1Sample* src = samples[b];
@@ -995,6 +1123,7 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
     batch.offset_valid.resize(base + m, 0);
     batch.heading_bin.resize(base + m);
     batch.heading_residual.resize(base + m, 0.0f);
+    if (weighted) batch.semantic_weight.resize(base + m, 1.0f);
     for (std::size_t j = 0; j < m; ++j) {
       const std::size_t i = keep[j];
       const std::size_t o = base + j;
@@ -1014,6 +1143,7 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
         for (int c = 0; c < 3; ++c) batch.features[C * o + 3 + c] = colors[i][c] - 0.5f;
       }
       batch.semantic[o] = src->semantic[i];
+      if (weighted && !src->weight.empty()) batch.semantic_weight[o] = src->weight[i];
       const int k = src->instance[i];
       batch.heading_bin[o] = kStage1Ignore;
       if (k < 0) {

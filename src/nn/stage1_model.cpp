@@ -209,6 +209,7 @@ torch::Tensor FromVector(const std::vector<T>& v, torch::Dtype dtype, std::vecto
 struct BatchTensors {
   torch::Tensor voxel, features, semantic, offset_target, offset_valid, heading_bin,
       heading_residual;
+  torch::Tensor semantic_weight;  // [N] or undefined (unweighted points)
   int64_t batch_size = 0;
 };
 
@@ -220,7 +221,8 @@ BatchTensors ToTensors(const Stage1Batch& b, const torch::Device& device) {
       static_cast<int64_t>(b.offset_target.size()) != 3 * n ||
       static_cast<int64_t>(b.offset_valid.size()) != n ||
       static_cast<int64_t>(b.heading_bin.size()) != n ||
-      static_cast<int64_t>(b.heading_residual.size()) != n) {
+      static_cast<int64_t>(b.heading_residual.size()) != n ||
+      (!b.semantic_weight.empty() && static_cast<int64_t>(b.semantic_weight.size()) != n)) {
     throw InvalidArgument("stage1: inconsistent batch array sizes");
   }
   BatchTensors t;
@@ -232,6 +234,8 @@ BatchTensors ToTensors(const Stage1Batch& b, const torch::Device& device) {
   t.offset_valid = FromVector(b.offset_valid, torch::kUInt8, {n}).to(torch::kFloat32).to(device);
   t.heading_bin = FromVector(b.heading_bin, torch::kInt64, {n}).to(device);
   t.heading_residual = FromVector(b.heading_residual, torch::kFloat32, {n}).to(device);
+  if (!b.semantic_weight.empty())
+    t.semantic_weight = FromVector(b.semantic_weight, torch::kFloat32, {n}).to(device);
   return t;
 }
 
@@ -244,12 +248,26 @@ struct LossOut {
 LossOut ComputeLoss(const HeadOutput& h, const BatchTensors& t,
                     const torch::Tensor& class_weight = {}) {
   LossOut out;
-  // Semantic cross-entropy, ignore -100, (weighted) mean over the labelled points.
+  // Semantic cross-entropy, ignore -100, (weighted) mean over the labelled points. With
+  // per-point weights w_i: sum_i w_i c_{y_i} ce_i / sum_i w_i c_{y_i} (c: class weights or 1),
+  // which is the class-weighted mean when every w_i is 1.
   torch::Tensor sem;
-  if ((t.semantic != kStage1Ignore).any().item<bool>()) {
+  const torch::Tensor labelled = t.semantic != kStage1Ignore;
+  if (labelled.any().item<bool>()) {
     auto options = torch::nn::functional::CrossEntropyFuncOptions().ignore_index(kStage1Ignore);
     if (class_weight.defined()) options.weight(class_weight);
-    sem = torch::nn::functional::cross_entropy(h.semantic, t.semantic, options);
+    if (t.semantic_weight.defined()) {
+      options.reduction(torch::kNone);  // c_{y_i} ce_i, 0 where ignored
+      const torch::Tensor ce =
+          torch::nn::functional::cross_entropy(h.semantic, t.semantic, options);
+      const torch::Tensor c = class_weight.defined()
+                                  ? class_weight.index_select(0, t.semantic.clamp_min(0))
+                                  : torch::ones_like(t.semantic_weight);
+      const torch::Tensor w = t.semantic_weight * c * labelled.to(torch::kFloat32);
+      sem = (ce * t.semantic_weight).sum() / w.sum();
+    } else {
+      sem = torch::nn::functional::cross_entropy(h.semantic, t.semantic, options);
+    }
   } else {
     sem = h.semantic.sum() * 0;
   }

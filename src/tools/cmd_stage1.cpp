@@ -342,6 +342,7 @@ struct TrainArgs {
   int epochs = 40, batch = 4, threads = 0, loader_threads = 1, checkpoint_every = 200;
   int limit_train = 0, val_scenes = 20, val_every = 1, data_threads = 2;
   double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
+  double wall_plane_weight = 1;  // semantic-loss weight of non-wall points in a wall's plane
   std::uint64_t seed = 123;
   bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
   bool lr_by_time = false;
@@ -408,6 +409,7 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
     y << "  realism_augmentation: \"" << nn::RealismAugment::FromString(a.realism).ToString()
       << "\"\n";
   y << "  class_weights: " << a.class_weights << "\n";
+  if (a.wall_plane_weight != 1) y << "  wall_plane_weight: " << a.wall_plane_weight << "\n";
   if (a.lr_by_time) y << "  lr_schedule: by time (decay reached at --max-minutes)\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   if (val) {
@@ -448,7 +450,27 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   std::filesystem::create_directories(a.out + "/checkpoint");
   opt.checkpoint_path = a.out + "/checkpoint/stage1.pt";
 
-  const auto train = LoadSceneSets(a.train, a.limit_train, a.data_threads);
+  auto train = LoadSceneSets(a.train, a.limit_train, a.data_threads);
+  if (a.wall_plane_weight != 1) {
+    std::size_t hard = 0, labelled = 0;
+    std::vector<std::size_t> by_class(nn::kStage1Classes, 0);
+    for (auto& sample : train) {
+      hard += nn::SetInWallPlaneWeights(&sample, static_cast<float>(a.wall_plane_weight));
+      for (std::size_t i = 0; i < sample.semantic.size(); ++i) {
+        if (sample.semantic[i] == nn::kStage1Ignore) continue;
+        ++labelled;
+        if (!sample.weight.empty() && sample.weight[i] != 1.0f) ++by_class[sample.semantic[i]];
+      }
+    }
+    std::printf(
+        "wall-plane weight %g on %zu points (%.2f %% of the labelled points): non-wall "
+        "points in the plane of a labelled wall; by class:",
+        a.wall_plane_weight, hard, labelled ? 100.0 * hard / labelled : 0.0);
+    for (int c = 0; c < nn::kStage1Classes; ++c) {
+      if (by_class[c] > 0) std::printf(" %s %zu", labels::RfsClassNames()[c], by_class[c]);
+    }
+    std::printf("\n");
+  }
   std::vector<nn::Stage1Sample> val;
   if (!a.val.empty()) val = LoadSceneSets(a.val, a.val_scenes, a.data_threads);
   const nn::ClassWeighting weighting = nn::ClassWeightingNames().Parse(a.class_weights);
@@ -594,6 +616,11 @@ void SetupTrain(CLI::App& app) {
   app.add_option(
       "--class-weights", a->class_weights,
       "semantic loss weights: none (reference) | sqrt-inverse | inverse (of class frequency)");
+  app.add_option("--wall-plane-weight", a->wall_plane_weight,
+                 "semantic-loss weight of labelled non-wall points in the plane of a labelled "
+                 "wall (closed doors, flat curtains, windows, posters; 1 = off; "
+                 "nn::SetInWallPlaneWeights)")
+      ->check(CLI::PositiveNumber);
   app.add_option("--init", a->init,
                  "start from these stage-1 weights (fine-tuning; same --config, or the same with "
                  "rgb=0 to fine-tune a colour model into a geometry-only one, or with another "
