@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <condition_variable>
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <exception>
@@ -13,6 +14,7 @@
 #include <map>
 #include <mutex>
 #include <thread>
+#include <unordered_set>
 #include <utility>
 
 #include "dimr/core/config_fields.h"
@@ -405,6 +407,8 @@ void InWallPlaneConfig::Validate() const {
   if (min_points < 3) throw InvalidArgument("InWallPlaneConfig: 'min_points' must be >= 3");
   if (!(min_instance_share >= 0 && min_instance_share <= 1))
     throw InvalidArgument("InWallPlaneConfig: 'min_instance_share' must be in [0, 1]");
+  if (!(wall_context >= 0) || !std::isfinite(wall_context))
+    throw InvalidArgument("InWallPlaneConfig: 'wall_context' must be finite and >= 0");
 }
 
 std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
@@ -423,9 +427,11 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
   struct Plane {
     Eigen::Vector2d centre, normal, along;
     double u0, u1, z0, z1;
+    int wall;  // instance
   };
   std::vector<Plane> planes;
-  for (const auto& idx : members) {
+  for (std::size_t w = 0; w < members.size(); ++w) {
+    const std::vector<std::size_t>& idx = members[w];
     if (static_cast<int>(idx.size()) < config.min_points) continue;
     Eigen::Vector2d mean = Eigen::Vector2d::Zero();
     for (std::size_t i : idx) mean += sample.points[i].head<2>().cast<double>();
@@ -439,6 +445,7 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
     const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> eig(cov);  // ascending eigenvalues
     if (std::sqrt(std::max(0.0, eig.eigenvalues()[0])) > config.max_thickness) continue;
     Plane p;
+    p.wall = static_cast<int>(w);
     p.centre = mean;
     p.normal = eig.eigenvectors().col(0);
     p.along = eig.eigenvectors().col(1);
@@ -454,36 +461,82 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
     planes.push_back(p);
   }
   if (planes.empty()) return out;
+  std::vector<int> plane_of(n, -1);  // of the points marked 1
   for (std::size_t i = 0; i < n; ++i) {
     const int s = sample.semantic[i];
     if (s == kStage1Ignore || s == kWall || s == kFloor) continue;
     const Eigen::Vector3f& q = sample.points[i];
-    for (const Plane& p : planes) {
+    for (std::size_t k = 0; k < planes.size(); ++k) {
+      const Plane& p = planes[k];
       const Eigen::Vector2d d = q.head<2>().cast<double>() - p.centre;
       const double u = p.along.dot(d);
       if (std::abs(p.normal.dot(d)) <= config.distance && u >= p.u0 - config.margin &&
           u <= p.u1 + config.margin && q.z() >= p.z0 - config.margin &&
           q.z() <= p.z1 + config.margin) {
         out[i] = 1;
+        plane_of[i] = static_cast<int>(k);
         break;
       }
     }
   }
-  if (config.min_instance_share <= 0) return out;
-  // Keep the objects that are flat in a wall plane.
-  std::vector<std::size_t> total(sample.instances.size(), 0), inside(sample.instances.size(), 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    const int k = sample.instance[i];
-    if (k < 0) continue;
-    ++total[k];
-    inside[k] += out[i];
+  if (config.min_instance_share > 0) {
+    // Keep the objects that are flat in a wall plane.
+    std::vector<std::size_t> total(sample.instances.size(), 0), inside(sample.instances.size(), 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      const int k = sample.instance[i];
+      if (k < 0) continue;
+      ++total[k];
+      inside[k] += out[i];
+    }
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!out[i]) continue;
+      const int k = sample.instance[i];
+      if (k < 0 || static_cast<double>(inside[k]) <
+                       config.min_instance_share * static_cast<double>(total[k]))
+        out[i] = 0;
+    }
   }
-  for (std::size_t i = 0; i < n; ++i) {
-    if (!out[i]) continue;
-    const int k = sample.instance[i];
-    if (k < 0 ||
-        static_cast<double>(inside[k]) < config.min_instance_share * static_cast<double>(total[k]))
-      out[i] = 0;
+  if (config.wall_context <= 0) return out;
+  // Wall context: per plane, the 5 cm cells (along the wall, z) of its marked object points,
+  // dilated by a disc of radius wall_context; the plane's own wall points in them get 2.
+  constexpr double kCell = 0.05;
+  const int reach = static_cast<int>(std::ceil(config.wall_context / kCell));
+  auto key = [](long long a, long long b) {
+    return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
+           static_cast<std::uint32_t>(b);
+  };
+  for (std::size_t k = 0; k < planes.size(); ++k) {
+    const Plane& p = planes[k];
+    auto cell = [&](std::size_t i, long long* a, long long* b) {
+      const Eigen::Vector2d d = sample.points[i].head<2>().cast<double>() - p.centre;
+      *a = static_cast<long long>(std::floor(p.along.dot(d) / kCell));
+      *b = static_cast<long long>(std::floor(sample.points[i].z() / kCell));
+    };
+    std::unordered_set<std::uint64_t> seeds;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (out[i] != 1 || plane_of[i] != static_cast<int>(k)) continue;
+      long long a, b;
+      cell(i, &a, &b);
+      seeds.insert(key(a, b));
+    }
+    if (seeds.empty()) continue;
+    std::unordered_set<std::uint64_t> near;
+    for (std::uint64_t s : seeds) {
+      const long long a = static_cast<std::int32_t>(static_cast<std::uint32_t>(s >> 32));
+      const long long b = static_cast<std::int32_t>(static_cast<std::uint32_t>(s));
+      for (int da = -reach; da <= reach; ++da) {
+        for (int db = -reach; db <= reach; ++db) {
+          if ((da * da + db * db) * kCell * kCell > config.wall_context * config.wall_context)
+            continue;
+          near.insert(key(a + da, b + db));
+        }
+      }
+    }
+    for (std::size_t i : members[p.wall]) {
+      long long a, b;
+      cell(i, &a, &b);
+      if (near.count(key(a, b))) out[i] = 2;
+    }
   }
   return out;
 }
@@ -497,7 +550,8 @@ std::size_t SetInWallPlaneWeights(Stage1Sample* sample, float weight,
   }
   sample->weight.clear();
   const std::vector<std::uint8_t> in = InWallPlanePoints(*sample, config);
-  const std::size_t count = static_cast<std::size_t>(std::count(in.begin(), in.end(), 1));
+  const std::size_t count =
+      in.size() - static_cast<std::size_t>(std::count(in.begin(), in.end(), 0));
   if (weight == 1.0f) return count;
   sample->weight.resize(in.size());
   for (std::size_t i = 0; i < in.size(); ++i) sample->weight[i] = in[i] ? weight : 1.0f;

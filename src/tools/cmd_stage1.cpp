@@ -342,7 +342,8 @@ struct TrainArgs {
   int epochs = 40, batch = 4, threads = 0, loader_threads = 1, checkpoint_every = 200;
   int limit_train = 0, val_scenes = 20, val_every = 1, data_threads = 2;
   double lr = 1e-3, lr_decay = 0.1, max_minutes = 0;
-  double wall_plane_weight = 1;  // semantic-loss weight of non-wall points in a wall's plane
+  double wall_plane_weight = 1;   // semantic-loss weight of non-wall points in a wall's plane
+  double wall_plane_context = 0;  // m: also weight the wall this close to them (0 = off)
   std::uint64_t seed = 123;
   bool no_augment = false, no_elastic = false, rgb = false, fp32 = false, quiet = false;
   bool lr_by_time = false;
@@ -410,6 +411,8 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
       << "\"\n";
   y << "  class_weights: " << a.class_weights << "\n";
   if (a.wall_plane_weight != 1) y << "  wall_plane_weight: " << a.wall_plane_weight << "\n";
+  if (a.wall_plane_weight != 1 && a.wall_plane_context > 0)
+    y << "  wall_plane_context: " << a.wall_plane_context << "\n";
   if (a.lr_by_time) y << "  lr_schedule: by time (decay reached at --max-minutes)\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";
   if (val) {
@@ -428,6 +431,10 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
 
 void RunTrain(const TrainArgs& a, const std::string& command) {
   const auto t_start = Clock::now();
+  if (a.wall_plane_context > 0 && a.wall_plane_weight == 1) {
+    throw InvalidArgument("--wall-plane-context " + std::to_string(a.wall_plane_context) +
+                          " needs --wall-plane-weight W (W != 1)");
+  }
   nn::Stage1Config config = ConfigFromArg(a.config);
   if (a.rgb) config.input.use_rgb = true;
   nn::Stage1TrainOptions opt;
@@ -454,18 +461,25 @@ void RunTrain(const TrainArgs& a, const std::string& command) {
   if (a.wall_plane_weight != 1) {
     std::size_t hard = 0, labelled = 0;
     std::vector<std::size_t> by_class(nn::kStage1Classes, 0);
+    nn::InWallPlaneConfig plane;
+    plane.wall_context = a.wall_plane_context;
     for (auto& sample : train) {
-      hard += nn::SetInWallPlaneWeights(&sample, static_cast<float>(a.wall_plane_weight));
+      hard += nn::SetInWallPlaneWeights(&sample, static_cast<float>(a.wall_plane_weight), plane);
       for (std::size_t i = 0; i < sample.semantic.size(); ++i) {
         if (sample.semantic[i] == nn::kStage1Ignore) continue;
         ++labelled;
         if (!sample.weight.empty() && sample.weight[i] != 1.0f) ++by_class[sample.semantic[i]];
       }
     }
+    char context[96] = "";
+    if (a.wall_plane_context > 0) {
+      std::snprintf(context, sizeof(context), " and the wall within %g m of them",
+                    a.wall_plane_context);
+    }
     std::printf(
         "wall-plane weight %g on %zu points (%.2f %% of the labelled points): non-wall "
-        "points in the plane of a labelled wall; by class:",
-        a.wall_plane_weight, hard, labelled ? 100.0 * hard / labelled : 0.0);
+        "points in the plane of a labelled wall%s; by class:",
+        a.wall_plane_weight, hard, labelled ? 100.0 * hard / labelled : 0.0, context);
     for (int c = 0; c < nn::kStage1Classes; ++c) {
       if (by_class[c] > 0) std::printf(" %s %zu", labels::RfsClassNames()[c], by_class[c]);
     }
@@ -621,6 +635,11 @@ void SetupTrain(CLI::App& app) {
                  "wall (closed doors, flat curtains, windows, posters; 1 = off; "
                  "nn::SetInWallPlaneWeights)")
       ->check(CLI::PositiveNumber);
+  app.add_option("--wall-plane-context", a->wall_plane_context,
+                 "with --wall-plane-weight: also weight the wall's own points within this many "
+                 "metres (in its plane) of those objects, so that both sides of the boundary "
+                 "count (0 = off)")
+      ->check(CLI::NonNegativeNumber);
   app.add_option("--init", a->init,
                  "start from these stage-1 weights (fine-tuning; same --config, or the same with "
                  "rgb=0 to fine-tune a colour model into a geometry-only one, or with another "

@@ -49,14 +49,17 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
   std::tie(rc, out) =
       RunCli("train stage1 --train " + d + "/cache.bin --val " + d + "/cache.bin --out " + model +
              " --config 'scale=10 rgb=0 widths=8,16 reps=1 classes=25' --epochs 2 --batch 1 "
-             "--threads 1 --quiet --seed 3 --wall-plane-weight 3");
+             "--threads 1 --quiet --seed 3 --wall-plane-weight 3 --wall-plane-context 0.3");
   ASSERT_EQ(rc, 0) << out;
   EXPECT_NE(out.find("after 4 steps"), std::string::npos) << out;
   // Hard examples: the windows (and closed doors) of SynthScan rooms lie in their walls' planes.
+  // With --wall-plane-context 0.3 the wall around them is weighted too: wall points are counted.
   ASSERT_TRUE(std::regex_search(out, m, std::regex("wall-plane weight 3 on ([0-9]+) points")))
       << out;
   EXPECT_GT(std::stoll(m[1]), 0) << out;
-  EXPECT_LT(std::stoll(m[1]), points / 5) << out;
+  EXPECT_LT(std::stoll(m[1]), points / 3) << out;
+  EXPECT_NE(out.find("and the wall within 0.3 m of them"), std::string::npos) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex("by class:.* wall [1-9][0-9]*"))) << out;
   ASSERT_TRUE(fs::exists(model + "/stage1.pt"));
   EXPECT_EQ(CountLines(model + "/train_log.csv"), 1 + 4);  // header + 2 epochs x 2 scenes
   EXPECT_GE(CountLines(model + "/val_log.csv"), 2);        // header + at least one epoch
@@ -67,6 +70,11 @@ TEST(Stage1Cli, TrainEvalBenchOnTwoRooms) {
       << card;
   EXPECT_NE(card.find("semantic_miou_present:"), std::string::npos) << card;
   EXPECT_NE(card.find("wall_plane_weight: 3\n"), std::string::npos) << card;
+  EXPECT_NE(card.find("wall_plane_context: 0.3\n"), std::string::npos) << card;
+  EXPECT_NE(RunCli("train stage1 --train " + d + "/cache.bin --out " + d +
+                   "/never --wall-plane-context 0.3")
+                .first,
+            0);
   EXPECT_NE(
       RunCli("train stage1 --train " + d + "/cache.bin --out " + d + "/never --wall-plane-weight 0")
           .first,

@@ -120,6 +120,54 @@ TEST(Stage1WallPlane, FindsFlatObjectsInAPlanarWallOnly) {
   EXPECT_THROW(InWallPlanePoints(room.sample, bad), InvalidArgument);
 }
 
+TEST(Stage1WallPlane, WallContextIsTheWallAroundTheFlatObjects) {
+  const Room room = MakeRoom();
+  const Stage1Sample& s = room.sample;
+  InWallPlaneConfig config;
+  config.wall_context = 0.3;
+  const std::vector<std::uint8_t> in = InWallPlanePoints(s, config);
+  const std::vector<std::uint8_t> plain = InWallPlanePoints(s);
+  ASSERT_EQ(in.size(), s.points.size());
+  // In-plane distance (y, z) of each x = 0 wall point to the nearest door / curtain point.
+  int near_marked = 0, near_total = 0, far_marked = 0, far_total = 0;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    const int obj = room.object[i];
+    if (obj != 1) {
+      // Objects keep their marks; no other point becomes context.
+      EXPECT_EQ(in[i], plain[i]) << "point " << i << " of object " << obj;
+      continue;
+    }
+    EXPECT_NE(in[i], 1) << "wall point " << i;
+    double best = INFINITY;
+    for (std::size_t j = 0; j < s.points.size(); ++j) {
+      if (room.object[j] != 3 && room.object[j] != 4) continue;
+      best = std::min(best, std::hypot(static_cast<double>(s.points[i].y() - s.points[j].y()),
+                                       static_cast<double>(s.points[i].z() - s.points[j].z())));
+    }
+    // The 5 cm grid makes the reach exact to within a cell diagonal (7.1 cm).
+    if (best <= 0.3 - 0.075) {
+      ++near_total;
+      near_marked += in[i] == 2;
+    } else if (best > 0.3 + 0.075) {
+      ++far_total;
+      far_marked += in[i] == 2;
+    }
+  }
+  ASSERT_GT(near_total, 300);
+  ASSERT_GT(far_total, 300);
+  EXPECT_EQ(near_marked, near_total);
+  EXPECT_EQ(far_marked, 0);
+  // The weights cover both: 700 object points and the context.
+  Stage1Sample w = s;
+  const std::size_t context = static_cast<std::size_t>(std::count(in.begin(), in.end(), 2));
+  EXPECT_EQ(SetInWallPlaneWeights(&w, 2.0f, config), 700u + context);
+  for (std::size_t i = 0; i < in.size(); ++i) ASSERT_EQ(w.weight[i], in[i] ? 2.0f : 1.0f);
+  config.wall_context = -1;
+  EXPECT_THROW(InWallPlanePoints(s, config), InvalidArgument);
+  config.wall_context = NAN;
+  EXPECT_THROW(InWallPlanePoints(s, config), InvalidArgument);
+}
+
 TEST(Stage1WallPlane, WeightsReachTheBatchAndSurviveInstanceMixing) {
   Room room = MakeRoom();
   Stage1Sample& s = room.sample;

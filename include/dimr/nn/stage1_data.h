@@ -88,15 +88,21 @@ struct InWallPlaneConfig {
   double max_thickness = 0.05;      // m, RMS distance of the wall's points to its plane
   int min_points = 100;             // points of a wall instance
   double min_instance_share = 0.5;  // of an object's points in a wall plane, in [0, 1]
-  void Validate() const;            // throws dimr::InvalidArgument naming the field
+  // m, >= 0; 0 = off. The wall's own points within this in-plane distance (along the wall and
+  // in z, on a 5 cm grid: +-5 cm) of an object point in its plane are its context: the wall
+  // around a closed door, so that a weight on both sides teaches the boundary, not a prior.
+  double wall_context = 0.0;
+  void Validate() const;  // throws dimr::InvalidArgument naming the field
 };
-// Per point of `sample`: 1 when it is in a wall plane (above), else 0. Wall points without an
-// instance, and walls that are not planar (a corner, a curved wall), define no plane.
+// Per point of `sample`: 1 when it is in a wall plane (above), 2 when it is a wall point in the
+// context of such an object (`wall_context` > 0), else 0. Wall points without an instance, and
+// walls that are not planar (a corner, a curved wall), define no plane.
 // Throws dimr::InvalidArgument for an invalid sample or configuration.
 std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
                                             const InWallPlaneConfig& config = {});
-// sample->weight = `weight` on the points in a wall plane, 1 elsewhere (weight 1 clears it:
-// empty). Returns how many points got `weight`. Throws dimr::InvalidArgument for a weight that
+// sample->weight = `weight` on the points in a wall plane and their wall context (values 1 and 2
+// of InWallPlanePoints), 1 elsewhere (weight 1 clears it: empty). Returns how many points got
+// `weight`. Throws dimr::InvalidArgument for a weight that
 // is not finite and > 0, and as InWallPlanePoints.
 std::size_t SetInWallPlaneWeights(Stage1Sample* sample, float weight,
                                   const InWallPlaneConfig& config = {});
