@@ -501,6 +501,13 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
   // dilated by a disc of radius wall_context; the plane's own wall points in them get 2.
   constexpr double kCell = 0.05;
   const int reach = static_cast<int>(std::ceil(config.wall_context / kCell));
+  std::vector<std::pair<int, int>> disc;
+  for (int da = -reach; da <= reach; ++da) {
+    for (int db = -reach; db <= reach; ++db) {
+      if ((da * da + db * db) * kCell * kCell <= config.wall_context * config.wall_context)
+        disc.emplace_back(da, db);
+    }
+  }
   auto key = [](long long a, long long b) {
     return (static_cast<std::uint64_t>(static_cast<std::uint32_t>(a)) << 32) |
            static_cast<std::uint32_t>(b);
@@ -512,26 +519,15 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
       *a = static_cast<long long>(std::floor(p.along.dot(d) / kCell));
       *b = static_cast<long long>(std::floor(sample.points[i].z() / kCell));
     };
-    std::unordered_set<std::uint64_t> seeds;
+    std::unordered_set<std::uint64_t> seeds, near;
     for (std::size_t i = 0; i < n; ++i) {
       if (out[i] != 1 || plane_of[i] != static_cast<int>(k)) continue;
       long long a, b;
       cell(i, &a, &b);
-      seeds.insert(key(a, b));
+      if (!seeds.insert(key(a, b)).second) continue;
+      for (const auto& [da, db] : disc) near.insert(key(a + da, b + db));
     }
-    if (seeds.empty()) continue;
-    std::unordered_set<std::uint64_t> near;
-    for (std::uint64_t s : seeds) {
-      const long long a = static_cast<std::int32_t>(static_cast<std::uint32_t>(s >> 32));
-      const long long b = static_cast<std::int32_t>(static_cast<std::uint32_t>(s));
-      for (int da = -reach; da <= reach; ++da) {
-        for (int db = -reach; db <= reach; ++db) {
-          if ((da * da + db * db) * kCell * kCell > config.wall_context * config.wall_context)
-            continue;
-          near.insert(key(a + da, b + db));
-        }
-      }
-    }
+    if (near.empty()) continue;
     for (std::size_t i : members[p.wall]) {
       long long a, b;
       cell(i, &a, &b);

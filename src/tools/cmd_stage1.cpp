@@ -411,7 +411,7 @@ void WriteModelCard(const TrainArgs& a, const std::string& command, const nn::St
       << "\"\n";
   y << "  class_weights: " << a.class_weights << "\n";
   if (a.wall_plane_weight != 1) y << "  wall_plane_weight: " << a.wall_plane_weight << "\n";
-  if (a.wall_plane_weight != 1 && a.wall_plane_context > 0)
+  if (a.wall_plane_context > 0)  // RunTrain refuses it without a weight
     y << "  wall_plane_context: " << a.wall_plane_context << "\n";
   if (a.lr_by_time) y << "  lr_schedule: by time (decay reached at --max-minutes)\n";
   if (!a.init.empty()) y << "  initialised_from: \"" << a.init << "\"\n";

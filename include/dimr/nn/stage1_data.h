@@ -102,8 +102,8 @@ std::vector<std::uint8_t> InWallPlanePoints(const Stage1Sample& sample,
                                             const InWallPlaneConfig& config = {});
 // sample->weight = `weight` on the points in a wall plane and their wall context (values 1 and 2
 // of InWallPlanePoints), 1 elsewhere (weight 1 clears it: empty). Returns how many points got
-// `weight`. Throws dimr::InvalidArgument for a weight that
-// is not finite and > 0, and as InWallPlanePoints.
+// `weight`. Throws dimr::InvalidArgument for a weight that is not finite and > 0, and as
+// InWallPlanePoints.
 std::size_t SetInWallPlaneWeights(Stage1Sample* sample, float weight,
                                   const InWallPlaneConfig& config = {});
 
