@@ -423,7 +423,7 @@ class Composer {
       obj.family = "door";
       // Leaf hinged at the y0 jamb, swung into the room by `angle`.
       const double leaf_w = (y1 - y0) - 2 * fw, leaf_t = 0.04, leaf_h = (zt - zb) - fw - 0.01;
-      const double angle = rng_.Bernoulli(0.35) ? 0.0 : rng_.Uniform(0.4, 1.6);
+      const double angle = rng_.Bernoulli(cfg_.door_closed) ? 0.0 : rng_.Uniform(0.4, 1.6);
       const Vec3 hinge(t / 2 - leaf_t, y0 + fw, zb);
       const Vec3 c_local(leaf_t / 2, leaf_w / 2, leaf_h / 2);
       const double a = -angle;  // about z at the hinge: the leaf (along +y) turns towards +x
@@ -458,6 +458,39 @@ class Composer {
     obj.material = MakeMaterial(&rng_, obj.role, obj.rfs_class);
     SetFromLocalMesh(mesh, origin, yaw, &obj);
     room_.objects.push_back(std::move(obj));
+    // A scanned pane in the opening (RoomConfig::window_pane): no draw at all when off, so rooms
+    // without panes are the rooms of earlier versions.
+    if (!o.door && cfg_.window_pane > 0 && rng_.Bernoulli(cfg_.window_pane))
+      BuildWindowPane(y0 + fw, y1 - fw, zb + fw, zt - fw, origin, yaw);
+  }
+
+  // What a depth camera sees of a real window: the glass (partly, glossy) or closed blinds, a
+  // flat surface set back a few centimetres from the wall's inner face (x = t/2 in the wall frame),
+  // filling the frame. Its own object (own colour), labelled window like the frame around it.
+  void BuildWindowPane(double y0, double y1, double z0, double z1, const Vec3& origin, double yaw) {
+    const double t = cfg_.wall_thickness, pane_t = 0.01;
+    const double inset = rng_.Uniform(0.01, std::max(0.011, std::min(0.07, t - 2 * pane_t)));
+    const bool blinds = rng_.Bernoulli(0.4);
+    // Linear RGB: glass shows daylight, an overcast sky or a dark outside; blinds are painted.
+    static const std::vector<Vec3> kGlass = {
+        {0.85, 0.88, 0.92}, {0.55, 0.62, 0.72}, {0.40, 0.42, 0.44}, {0.12, 0.13, 0.15}};
+    static const std::vector<Vec3> kBlinds = {
+        {0.86, 0.85, 0.80}, {0.72, 0.64, 0.50}, {0.55, 0.55, 0.57}, {0.30, 0.24, 0.18}};
+    const auto& palette = blinds ? kBlinds : kGlass;
+    TriangleMesh mesh;
+    AppendBox(Vec3(t / 2 - inset - pane_t, y0, z0), Vec3(t / 2 - inset, y1, z1), &mesh);
+    PlacedObject pane;
+    pane.role = ObjectRole::kWindow;
+    pane.rfs_class = kWindow;
+    pane.category = "window";
+    pane.family = blinds ? kWindowBlindsFamily : kWindowGlassFamily;
+    pane.wall_mounted = true;
+    pane.material.albedo =
+        palette[static_cast<std::size_t>(rng_.UniformInt(0, static_cast<int>(palette.size()) - 1))];
+    pane.material.texture_amplitude = blinds ? rng_.Uniform(0.03, 0.08) : rng_.Uniform(0.01, 0.03);
+    pane.material.texture_scale = blinds ? rng_.Uniform(0.03, 0.06) : rng_.Uniform(0.2, 0.5);
+    SetFromLocalMesh(mesh, origin, yaw, &pane);
+    room_.objects.push_back(std::move(pane));
   }
 
   // ------------------------------------------------------------------ models
@@ -1059,6 +1092,8 @@ void RoomConfig::Validate() const {
   if (!(wall_thickness > 0.01 && wall_thickness < 1.0)) fail("wall_thickness must be in (0.01, 1)");
   if (max_doors < 1 || max_doors > 6) fail("max_doors must be in [1, 6]");
   if (max_windows < 0 || max_windows > 10) fail("max_windows must be in [0, 10]");
+  if (!(window_pane >= 0 && window_pane <= 1)) fail("window_pane must be in [0, 1]");
+  if (!(door_closed >= 0 && door_closed <= 1)) fail("door_closed must be in [0, 1]");
   if (!(clearance >= 0 && clearance < 0.5)) fail("clearance must be in [0, 0.5)");
   if (!(size_jitter >= 0 && size_jitter < 0.5)) fail("size_jitter must be in [0, 0.5)");
 }

@@ -163,7 +163,13 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
         break;
       case ObjectRole::kDoor:
       case ObjectRole::kWindow:
-        target = door * std::exp(rng.Normal(0, 0.05));
+        if (o.family == kWindowGlassFamily || o.family == kWindowBlindsFamily) {
+          // A pane keeps its own colour (daylight, sky, blinds), glass is glossy.
+          target = o.material.albedo * std::exp(rng.Normal(0, 0.1));
+          gloss = o.family == kWindowGlassFamily ? 0.8 : 0.0;
+        } else {
+          target = door * std::exp(rng.Normal(0, 0.05));
+        }
         break;
       default: {
         if (rng.Bernoulli(0.3)) {

@@ -51,6 +51,8 @@ struct SynthOptions {
   int map_cloud_every = 10;
   double real_furniture = 0.0;  // fraction of CAD objects / distractors from the import
   std::string real_furniture_dir = "data/sh3d";
+  double window_pane = 0.0;  // RoomConfig::window_pane
+  double door_closed = 0.35;  // RoomConfig::door_closed
   bool quiet = false;
   bool render = false;
   std::string scanner;  // 'key=value ...' on top of the mode's ScannerConfig (ScannerFields)
@@ -165,6 +167,8 @@ RunResult RunSynth(const SynthOptions& o) {
   dimr::data::SynthConfig config;
   config.scanner.frames = o.frames;
   config.scanner.density = dimr::data::ScanDensityFromName(o.density);
+  config.room.window_pane = o.window_pane;
+  config.room.door_closed = o.door_closed;
   config.scanner.keep_frames = o.bags;
   config.scanner.threads = 1;  // parallel over scenes instead
   config.scanner.drift_translation = o.drift;
@@ -315,6 +319,15 @@ void AddCommon(CLI::App& app, SynthOptions* o) {
       ->capture_default_str();
   app.add_option("--real-furniture-dir", o->real_furniture_dir,
                  "Folder written by `dimr cad import`")
+      ->capture_default_str();
+  app.add_option("--window-pane", o->window_pane,
+                 "Probability that a window has a pane the scanner sees (glass or closed blinds "
+                 "set back 1-7 cm from the wall face, labelled window; 0 = open frames, the rooms "
+                 "of earlier versions)")
+      ->capture_default_str();
+  app.add_option("--door-closed", o->door_closed,
+                 "Probability that a door's leaf is closed, flush in its frame (else open by "
+                 "0.4-1.6 rad)")
       ->capture_default_str();
   app.add_option("--scanner", o->scanner,
                  "Scanner / sensor-model overrides 'key=value ...' applied after --realism "

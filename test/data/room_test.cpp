@@ -188,6 +188,94 @@ TEST_F(RoomTest, CanonicalMeshesAndDeterminism) {
   EXPECT_NE(other.objects[0].scale, rooms_[0].objects[0].scale);
 }
 
+// RoomConfig::window_pane: every window of a room gets one pane when the probability is 1: a
+// 1 cm slab labelled window, inside its frame's opening, parallel to its wall and set back 1-7 cm
+// from the wall's inner face; glass and blinds both occur. With 0 nothing is added.
+TEST(RoomWindowPaneTest, PanesSitInTheOpeningSetBackFromTheWallFace) {
+  RoomConfig cfg;
+  cfg.window_pane = 1.0;
+  int frames = 0, glass = 0, blinds = 0;
+  for (std::uint64_t seed = 0; seed < 16; ++seed) {
+    const Room room = ComposeRoom(cfg, seed);
+    std::vector<const PlacedObject*> walls, window_frames, panes;
+    for (const auto& o : room.objects) {
+      if (o.role == ObjectRole::kWall) walls.push_back(&o);
+      if (o.role != ObjectRole::kWindow) continue;
+      EXPECT_EQ(o.rfs_class, kWindow);
+      EXPECT_EQ(o.category, "window");
+      if (o.family == kWindowGlassFamily || o.family == kWindowBlindsFamily) {
+        panes.push_back(&o);
+        glass += o.family == kWindowGlassFamily;
+        blinds += o.family == kWindowBlindsFamily;
+      } else {
+        EXPECT_EQ(o.family, "window");
+        window_frames.push_back(&o);
+      }
+    }
+    ASSERT_EQ(panes.size(), window_frames.size()) << "seed " << seed;
+    frames += static_cast<int>(window_frames.size());
+    for (const PlacedObject* pane : panes) {
+      EXPECT_NEAR(pane->scale.x(), 0.01, 1e-9);  // thickness, across the wall
+      // Its wall: same orientation, nearest plane. The wall's box centre is mid-thickness, so
+      // the pane's centre lies t/2 - inset - 0.005 in front of it along the inward normal.
+      const Vec3 normal(std::cos(pane->yaw), std::sin(pane->yaw), 0.0);
+      double best = 1e9;
+      for (const PlacedObject* w : walls) {
+        if (std::abs(std::remainder(w->yaw - pane->yaw, 2 * M_PI)) > 1e-9) continue;
+        const double d = (pane->translation - w->translation).dot(normal);
+        if (std::abs(d) < std::abs(best)) best = d;
+      }
+      const double t = cfg.wall_thickness;
+      EXPECT_GE(best, t / 2 - 0.07 - 0.005 - 1e-9) << "seed " << seed;
+      EXPECT_LE(best, t / 2 - 0.01 - 0.005 + 1e-9) << "seed " << seed;
+      // Inside one frame: same wall direction, centred in the opening, 6 cm jambs on each side
+      // and at the head, the sill's 6 cm below.
+      int inside = 0;
+      for (const PlacedObject* f : window_frames) {
+        if (std::abs(std::remainder(f->yaw - pane->yaw, 2 * M_PI)) > 1e-9) continue;
+        const Vec3 along(-std::sin(pane->yaw), std::cos(pane->yaw), 0.0);
+        const double ds = (pane->translation - f->translation).dot(along);
+        if (std::abs(ds) > 1e-6) continue;
+        EXPECT_NEAR(pane->scale.y(), f->scale.y() - 0.12, 1e-6);
+        EXPECT_NEAR(pane->scale.z(), f->scale.z() - 0.12, 1e-6);
+        ++inside;
+      }
+      EXPECT_EQ(inside, 1) << "seed " << seed;
+    }
+  }
+  EXPECT_GE(frames, 8);
+  EXPECT_GT(glass, 0);
+  EXPECT_GT(blinds, 0);
+  // Off (the default): no panes.
+  for (std::uint64_t seed = 0; seed < 4; ++seed) {
+    for (const auto& o : ComposeRoom(RoomConfig(), seed).objects)
+      EXPECT_EQ(o.family.rfind("window_", 0), std::string::npos);
+  }
+}
+
+// RoomConfig::door_closed: all leaves closed at 1 (the door object is no deeper than its frame,
+// wall thickness + 2 cm), all open at 0 (the leaf swings >= 0.4 rad into the room).
+TEST(RoomDoorTest, DoorClosedClosesTheLeaves) {
+  RoomConfig closed, open;
+  closed.door_closed = 1.0;
+  open.door_closed = 0.0;
+  int doors_closed = 0, doors_open = 0;
+  for (std::uint64_t seed = 0; seed < 12; ++seed) {
+    for (const auto& x : ComposeRoom(closed, seed).objects) {
+      if (x.role != ObjectRole::kDoor) continue;
+      ++doors_closed;
+      EXPECT_NEAR(x.scale.x(), closed.wall_thickness + 0.02, 1e-6) << "seed " << seed;
+    }
+    for (const auto& y : ComposeRoom(open, seed).objects) {
+      if (y.role != ObjectRole::kDoor) continue;
+      ++doors_open;
+      EXPECT_GT(y.scale.x(), open.wall_thickness + 0.02 + 0.2) << "seed " << seed;
+    }
+  }
+  EXPECT_GE(doors_closed, 12);
+  EXPECT_GE(doors_open, 12);
+}
+
 TEST(RoomConfigTest, RejectsBadValues) {
   RoomConfig c;
   c.min_objects = 10;
@@ -201,6 +289,17 @@ TEST(RoomConfigTest, RejectsBadValues) {
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("wall_thickness"), std::string::npos);
   }
+  c = RoomConfig();
+  c.window_pane = 1.5;
+  try {
+    c.Validate();
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("window_pane"), std::string::npos);
+  }
+  c = RoomConfig();
+  c.door_closed = -0.1;
+  EXPECT_THROW(c.Validate(), InvalidArgument);
   EXPECT_THROW(CadSizeRange(8, nullptr, nullptr), InvalidArgument);
 }
 

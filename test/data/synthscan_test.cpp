@@ -175,6 +175,36 @@ TEST(SynthScanTest, SameSeedSameBytes) {
   EXPECT_THROW(SceneName("dev", 0), InvalidArgument);
 }
 
+// Window panes (RoomConfig::window_pane) are scanned: their points are labelled window, lie on the
+// pane (within the noise bound of PointsLieOnTheirPlacedMeshes) and sit behind the wall's face.
+TEST(SynthScanTest, WindowPanesAreScannedAsWindow) {
+  SynthConfig cfg = TestConfig();
+  cfg.room.window_pane = 1.0;
+  int pane_points = 0, panes_seen = 0;
+  for (int index = 0; index < 6 && panes_seen == 0; ++index) {
+    const GeneratedScene g = GenerateScene(cfg, SceneSeed(5, "train", index), "scene0000_00");
+    const SynthScene& s = g.scene;
+    for (const auto& inst : s.instances) {
+      const PlacedObject& obj = g.room.objects.at(g.object_of_instance.at(inst.id));
+      if (obj.family != kWindowGlassFamily && obj.family != kWindowBlindsFamily) continue;
+      EXPECT_EQ(inst.category, "window");
+      EXPECT_EQ(inst.rfs_class, kWindow);
+      std::vector<Vec3> pts;
+      for (std::size_t k = 0; k < s.points.size(); ++k) {
+        if (s.instance[k] != inst.id) continue;
+        EXPECT_EQ(s.semantic[k], kWindow);
+        pts.push_back(s.points[k]);
+      }
+      const geometry::MeshDistance md(obj.WorldMesh());
+      for (double d : md.Distances(pts)) EXPECT_LT(d, 0.045);
+      pane_points += static_cast<int>(pts.size());
+      ++panes_seen;
+    }
+  }
+  EXPECT_GT(panes_seen, 0);
+  EXPECT_GT(pane_points, 100);
+}
+
 TEST(SynthScanTest, IndexShapeNetTreeAndSummary) {
   const GeneratedScene& g = Scene();
   const fs::path root = fs::temp_directory_path() / ("synth_idx_" + std::to_string(::getpid()));

@@ -27,6 +27,10 @@ namespace dimr::data {
 // What an object is in the room; walls, floor, doors and windows are built by the composer,
 // furniture and clutter come from the CAD library.
 enum class ObjectRole { kWall, kFloor, kCeiling, kDoor, kWindow, kFurniture, kClutter };
+
+// Families of the window panes RoomConfig::window_pane adds (the scanner gives glass its gloss).
+inline constexpr const char* kWindowGlassFamily = "window_glass";
+inline constexpr const char* kWindowBlindsFamily = "window_blinds";
 const char* ObjectRoleName(ObjectRole role);
 
 // A simple diffuse material: base colour plus a procedural value-noise texture.
@@ -81,6 +85,14 @@ struct RoomConfig {
   double wall_thickness = 0.12;
   int max_doors = 2;
   int max_windows = 3;
+  // Probability that a window has a pane the scanner sees (glass or closed blinds, set back 1-7 cm
+  // from the wall's inner face, its own object labelled window, family kWindowGlassFamily /
+  // kWindowBlindsFamily). 0 (the default) leaves windows as open frames and draws nothing, so the
+  // rooms of earlier versions are unchanged.
+  double window_pane = 0.0;
+  // Probability that a door's leaf is closed (flush in its frame); otherwise it stands open by
+  // 0.4-1.6 rad (one more draw). The default keeps the rooms of earlier versions.
+  double door_closed = 0.35;
   bool ceiling = true;        // part of the ray-cast scene (occluder), never in the output
   double clearance = 0.03;    // minimum gap between the boxes of two objects (metres)
   double size_jitter = 0.12;  // anisotropic per-axis scale jitter around the model's nominal size
