@@ -276,6 +276,16 @@ TEST(RoomDoorTest, DoorClosedClosesTheLeaves) {
   EXPECT_GE(doors_open, 12);
 }
 
+// Validate() throws InvalidArgument whose message names `field`.
+void ExpectRejectedNaming(const RoomConfig& c, const std::string& field) {
+  try {
+    c.Validate();
+    ADD_FAILURE() << field << " accepted";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
+  }
+}
+
 TEST(RoomConfigTest, RejectsBadValues) {
   RoomConfig c;
   c.min_objects = 10;
@@ -283,23 +293,13 @@ TEST(RoomConfigTest, RejectsBadValues) {
   EXPECT_THROW(ComposeRoom(c, 0), InvalidArgument);
   c = RoomConfig();
   c.wall_thickness = 0;
-  try {
-    c.Validate();
-    FAIL();
-  } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("wall_thickness"), std::string::npos);
-  }
+  ExpectRejectedNaming(c, "wall_thickness");
   c = RoomConfig();
   c.window_pane = 1.5;
-  try {
-    c.Validate();
-    FAIL();
-  } catch (const InvalidArgument& e) {
-    EXPECT_NE(std::string(e.what()).find("window_pane"), std::string::npos);
-  }
+  ExpectRejectedNaming(c, "window_pane");
   c = RoomConfig();
   c.door_closed = -0.1;
-  EXPECT_THROW(c.Validate(), InvalidArgument);
+  ExpectRejectedNaming(c, "door_closed");
   EXPECT_THROW(CadSizeRange(8, nullptr, nullptr), InvalidArgument);
 }
 
