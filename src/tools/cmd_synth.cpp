@@ -51,7 +51,7 @@ struct SynthOptions {
   int map_cloud_every = 10;
   double real_furniture = 0.0;  // fraction of CAD objects / distractors from the import
   std::string real_furniture_dir = "data/sh3d";
-  double window_pane = 0.0;  // RoomConfig::window_pane
+  double window_pane = 0.0;   // RoomConfig::window_pane
   double door_closed = 0.35;  // RoomConfig::door_closed
   bool quiet = false;
   bool render = false;

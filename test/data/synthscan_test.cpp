@@ -265,6 +265,19 @@ TEST(SynthCliTest, ShardsReproduceTheFullRunAndBadArgumentsFail) {
   const std::string bad = RunCli("synth --out " + (root / "x").string() + " --split dev", &status);
   EXPECT_NE(status, 0);
   EXPECT_NE(bad.find("split"), std::string::npos) << bad;
+  const std::string bad_pane =
+      RunCli("synth --out " + (root / "x").string() + " --window-pane 1.5", &status);
+  EXPECT_NE(status, 0);
+  EXPECT_NE(bad_pane.find("window_pane"), std::string::npos) << bad_pane;
+  // The pane and door options are recorded with the run.
+  const std::string panes = RunCli("synth --out " + (root / "p").string() +
+                                       " --scenes 1 --seed 9 --split test --frames-per-scene 6"
+                                       " --quiet --window-pane 0.5 --door-closed 0.9",
+                                   &status);
+  ASSERT_EQ(status, 0) << panes;
+  const std::string yaml = Slurp(root / "p" / "synthscan.yaml");
+  EXPECT_NE(yaml.find("window_pane: 0.5"), std::string::npos) << yaml;
+  EXPECT_NE(yaml.find("door_closed: 0.9"), std::string::npos) << yaml;
   { std::ofstream(root / "file") << "x"; }
   const std::string unwritable =
       RunCli("synth --scenes 1 --out " + (root / "file").string(), &status);
