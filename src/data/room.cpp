@@ -485,8 +485,7 @@ class Composer {
     pane.category = "window";
     pane.family = blinds ? kWindowBlindsFamily : kWindowGlassFamily;
     pane.wall_mounted = true;
-    pane.material.albedo =
-        palette[static_cast<std::size_t>(rng_.UniformInt(0, static_cast<int>(palette.size()) - 1))];
+    pane.material.albedo = rng_.Pick(palette);
     pane.material.texture_amplitude = blinds ? rng_.Uniform(0.03, 0.08) : rng_.Uniform(0.01, 0.03);
     pane.material.texture_scale = blinds ? rng_.Uniform(0.03, 0.06) : rng_.Uniform(0.2, 0.5);
     SetFromLocalMesh(mesh, origin, yaw, &pane);
@@ -517,7 +516,7 @@ class Composer {
       if (d.use == use) kinds.push_back(&d);
     }
     if (kinds.empty()) return false;
-    const DistractorUseInfo* d = kinds[rng_.UniformInt(0, static_cast<int>(kinds.size()) - 1)];
+    const DistractorUseInfo* d = rng_.Pick(kinds);
     *out = src_.distractor(d->kind, rng_.Next());
     if (info) *info = *d;
     return true;
@@ -644,7 +643,7 @@ class Composer {
   int PlaceFree(PlacedObject o, double yaw = std::numeric_limits<double>::quiet_NaN(),
                 double margin = 0.4) {
     for (int attempt = 0; attempt < 40; ++attempt) {
-      const auto& r = rects_[rng_.UniformInt(0, static_cast<int>(rects_.size()) - 1)];
+      const auto& r = rng_.Pick(rects_);
       const Vec2 lo = r.first + Vec2::Constant(margin), hi = r.second - Vec2::Constant(margin);
       if ((hi.array() <= lo.array()).any()) continue;
       o.translation =
@@ -993,7 +992,7 @@ class Composer {
         if (supports.empty()) {
           WallSingle(kCadTrashBin);
         } else {
-          TableTopClutter(supports[rng_.UniformInt(0, static_cast<int>(supports.size()) - 1)], 1);
+          TableTopClutter(rng_.Pick(supports), 1);
         }
       }
     }

@@ -119,11 +119,6 @@ double FloorPattern(const SceneLook& look, const Vec3& p) {
                   unit_normal(HashCombine(HashCombine(look.floor_salt, ia), ib)));
 }
 
-Vec3 Pick(const std::vector<Vec3>& palette, Rng* rng) {
-  return palette[static_cast<std::size_t>(
-      rng->UniformInt(0, static_cast<int>(palette.size()) - 1))];
-}
-
 SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t seed) {
   // Linear-RGB palettes of real interiors (paints, woods, tiles, carpets, upholstery).
   static const std::vector<Vec3> kWalls = {
@@ -143,8 +138,8 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
   SceneLook look;
   look.ambient = cfg.ambient;
   const double v = cfg.material_variety;
-  const Vec3 paint = Pick(kWalls, &rng), accent = Pick(kWalls, &rng);
-  const Vec3 floor = Pick(kFloors, &rng), door = Pick(kDoors, &rng);
+  const Vec3 paint = rng.Pick(kWalls), accent = rng.Pick(kWalls);
+  const Vec3 floor = rng.Pick(kFloors), door = rng.Pick(kDoors);
   for (const auto& o : room.objects) {
     Vec3 target = o.material.albedo;
     double gloss = 0;
@@ -163,7 +158,7 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
         break;
       case ObjectRole::kDoor:
       case ObjectRole::kWindow:
-        if (o.family == kWindowGlassFamily || o.family == kWindowBlindsFamily) {
+        if (IsWindowPane(o)) {
           // A pane keeps its own colour (daylight, sky, blinds), glass is glossy.
           target = o.material.albedo * std::exp(rng.Normal(0, 0.1));
           gloss = o.family == kWindowGlassFamily ? 0.8 : 0.0;
@@ -173,7 +168,7 @@ SceneLook MakeLook(const Room& room, const ScannerConfig& cfg, std::uint64_t see
         break;
       default: {
         if (rng.Bernoulli(0.3)) {
-          target = Pick(kFurniture, &rng);
+          target = rng.Pick(kFurniture);
         } else {
           const double b = std::exp(rng.Normal(0, 0.6));
           for (int k = 0; k < 3; ++k) target[k] *= b * std::exp(rng.Normal(0, 0.15));

@@ -203,7 +203,7 @@ TEST(RoomWindowPaneTest, PanesSitInTheOpeningSetBackFromTheWallFace) {
       if (o.role != ObjectRole::kWindow) continue;
       EXPECT_EQ(o.rfs_class, kWindow);
       EXPECT_EQ(o.category, "window");
-      if (o.family == kWindowGlassFamily || o.family == kWindowBlindsFamily) {
+      if (IsWindowPane(o)) {
         panes.push_back(&o);
         glass += o.family == kWindowGlassFamily;
         blinds += o.family == kWindowBlindsFamily;
@@ -215,13 +215,16 @@ TEST(RoomWindowPaneTest, PanesSitInTheOpeningSetBackFromTheWallFace) {
     ASSERT_EQ(panes.size(), window_frames.size()) << "seed " << seed;
     frames += static_cast<int>(window_frames.size());
     for (const PlacedObject* pane : panes) {
+      const auto same_direction = [&](const PlacedObject* o) {
+        return std::abs(std::remainder(o->yaw - pane->yaw, 2 * M_PI)) <= 1e-9;
+      };
       EXPECT_NEAR(pane->scale.x(), 0.01, 1e-9);  // thickness, across the wall
       // Its wall: same orientation, nearest plane. The wall's box centre is mid-thickness, so
       // the pane's centre lies t/2 - inset - 0.005 in front of it along the inward normal.
       const Vec3 normal(std::cos(pane->yaw), std::sin(pane->yaw), 0.0);
       double best = 1e9;
       for (const PlacedObject* w : walls) {
-        if (std::abs(std::remainder(w->yaw - pane->yaw, 2 * M_PI)) > 1e-9) continue;
+        if (!same_direction(w)) continue;
         const double d = (pane->translation - w->translation).dot(normal);
         if (std::abs(d) < std::abs(best)) best = d;
       }
@@ -230,10 +233,10 @@ TEST(RoomWindowPaneTest, PanesSitInTheOpeningSetBackFromTheWallFace) {
       EXPECT_LE(best, t / 2 - 0.01 - 0.005 + 1e-9) << "seed " << seed;
       // Inside one frame: same wall direction, centred in the opening, 6 cm jambs on each side
       // and at the head, the sill's 6 cm below.
+      const Vec3 along(-std::sin(pane->yaw), std::cos(pane->yaw), 0.0);
       int inside = 0;
       for (const PlacedObject* f : window_frames) {
-        if (std::abs(std::remainder(f->yaw - pane->yaw, 2 * M_PI)) > 1e-9) continue;
-        const Vec3 along(-std::sin(pane->yaw), std::cos(pane->yaw), 0.0);
+        if (!same_direction(f)) continue;
         const double ds = (pane->translation - f->translation).dot(along);
         if (std::abs(ds) > 1e-6) continue;
         EXPECT_NEAR(pane->scale.y(), f->scale.y() - 0.12, 1e-6);

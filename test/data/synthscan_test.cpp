@@ -186,7 +186,7 @@ TEST(SynthScanTest, WindowPanesAreScannedAsWindow) {
     const SynthScene& s = g.scene;
     for (const auto& inst : s.instances) {
       const PlacedObject& obj = g.room.objects.at(g.object_of_instance.at(inst.id));
-      if (obj.family != kWindowGlassFamily && obj.family != kWindowBlindsFamily) continue;
+      if (!IsWindowPane(obj)) continue;
       EXPECT_EQ(inst.category, "window");
       EXPECT_EQ(inst.rfs_class, kWindow);
       std::vector<Vec3> pts;

@@ -61,6 +61,11 @@ struct PlacedObject {
   geometry::TriangleMesh WorldMesh() const;
 };
 
+// A window pane added by RoomConfig::window_pane (glass or blinds), not a window frame.
+inline bool IsWindowPane(const PlacedObject& o) {
+  return o.family == kWindowGlassFamily || o.family == kWindowBlindsFamily;
+}
+
 struct Room {
   std::string shape;                     // "rect" or "L"
   std::vector<Eigen::Vector2d> outline;  // interior floor polygon, counter-clockwise

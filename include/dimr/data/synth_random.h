@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdint>
 #include <string>
+#include <vector>
 
 namespace dimr::data::synth {
 
@@ -63,6 +64,11 @@ class Rng {
     return lo + static_cast<int>(Next() % span);
   }
   bool Bernoulli(double p) { return Uniform() < p; }
+  // One element of a non-empty vector, uniformly (one UniformInt draw).
+  template <typename T>
+  const T& Pick(const std::vector<T>& v) {
+    return v[static_cast<std::size_t>(UniformInt(0, static_cast<int>(v.size()) - 1))];
+  }
   // Standard normal (Box-Muller, one value per call).
   double Normal() {
     double u1 = Uniform();
