@@ -261,6 +261,35 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
               "wall_plane_distance", [](C& c) -> double& { return c.wall_plane_distance; }, "m",
               "points this close to a wall plane are on it", 0.005, 0.5)
           .WrittenIf([](const C& c) { return c.wall_plane_distance != d.wall_plane_distance; })
+          .Flag(
+              "wall_openings", [](C& c) -> bool& { return c.wall_openings; },
+              "structure prior: compact regions of a wall plane that the network gives door / "
+              "window / curtain / picture probability (with colour contrast or recess when it "
+              "is weak) take that class")
+          .WrittenIf([](const C& c) { return c.wall_openings != d.wall_openings; })
+          .Number(
+              "wall_opening_prob", [](C& c) -> double& { return c.wall_opening_prob; }, "",
+              "wall openings: opening probability that alone puts a cell in an opening", 0.01,
+              1.0)
+          .WrittenIf([](const C& c) { return c.wall_opening_prob != d.wall_opening_prob; })
+          .Number(
+              "wall_opening_weak", [](C& c) -> double& { return c.wall_opening_weak; }, "",
+              "wall openings: opening probability that counts with colour contrast or recess",
+              0.0, 1.0)
+          .Check([](const C& c) -> std::string {
+            return c.wall_opening_weak > c.wall_opening_prob ? "must be <= wall_opening_prob"
+                                                             : "";
+          })
+          .WrittenIf([](const C& c) { return c.wall_opening_weak != d.wall_opening_weak; })
+          .Number(
+              "wall_opening_contrast", [](C& c) -> double& { return c.wall_opening_contrast; },
+              "", "wall openings: colour contrast (robust z-score against the wall's colour)",
+              0.1, 100.0)
+          .WrittenIf([](const C& c) { return c.wall_opening_contrast != d.wall_opening_contrast; })
+          .Number(
+              "wall_opening_area", [](C& c) -> double& { return c.wall_opening_area; }, "m2",
+              "wall openings: smallest opening", 0.0, 100.0)
+          .WrittenIf([](const C& c) { return c.wall_opening_area != d.wall_opening_area; })
           .Number(
               "scene_norm", [](C& c) -> double& { return c.scene_norm; }, "",
               "test-time adaptation: the U-Net's BatchNorm layers normalise with this blend of "
@@ -501,7 +530,8 @@ Stage1Result Stage1Segmenter::RunNetwork(const PointCloudInput& input, bool with
 }
 
 void Stage1Segmenter::FinishLabels(const std::vector<Eigen::Vector3f>& points,
-                                   const Stage1InferenceConfig& config, Stage1Result* r) {
+                                   const Stage1InferenceConfig& config, Stage1Result* r,
+                                   const std::vector<Eigen::Vector3f>* colours) {
   config.Validate();
   r->CheckShape("Stage1Segmenter::Finish", points.size(), kStage1RfsClasses);
   const std::vector<int>& rfs_to_cad = Stage1RfsToCad();
@@ -525,20 +555,33 @@ void Stage1Segmenter::FinishLabels(const std::vector<Eigen::Vector3f>& points,
                                   config.InstanceConfig().semantic_vote, r->point_row);
     }
   }
-  if (config.wall_planes) {
+  if (config.wall_planes || config.wall_openings) {
     ScopedTimer t(&r->timings, "wall_planes");
     WallPlaneConfig wall;
     wall.min_area = config.wall_plane_area;
     wall.distance = config.wall_plane_distance;
-    ApplyWallPlanes(points, wall, &r->semantic);
+    // Without wall_planes the planes are found on a copy: the labels keep their classes.
+    std::vector<int> copy;
+    if (!config.wall_planes) copy = r->semantic;
+    const WallPlaneResult planes =
+        ApplyWallPlanes(points, wall, config.wall_planes ? &r->semantic : &copy);
+    if (config.wall_openings) {
+      WallOpeningConfig open;
+      open.seed_prob = config.wall_opening_prob;
+      open.weak_prob = config.wall_opening_weak;
+      open.contrast = config.wall_opening_contrast;
+      open.min_area = config.wall_opening_area;
+      r->wall_openings = ApplyWallOpenings(points, colours, planes, *r, open, &r->semantic);
+    }
   }
   r->cad_label.resize(r->semantic.size());
   for (std::size_t i = 0; i < r->semantic.size(); ++i) r->cad_label[i] = rfs_to_cad[r->semantic[i]];
 }
 
 void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
-                             const Stage1InferenceConfig& config, Stage1Result* r) {
-  FinishLabels(points, config, r);
+                             const Stage1InferenceConfig& config, Stage1Result* r,
+                             const std::vector<Eigen::Vector3f>* colours) {
+  FinishLabels(points, config, r, colours);
   ScopedTimer t(&r->timings, "clustering");
   r->instances = ExtractStage1Instances(points, r->offsets, r->cad_label, r->semantic_prob,
                                         r->heading_prob, r->heading_residual, Stage1RfsToCad(),
@@ -548,7 +591,7 @@ void Stage1Segmenter::Finish(const std::vector<Eigen::Vector3f>& points,
 Stage1Result Stage1Segmenter::Segment(const PointCloudInput& input, bool with_features) const {
   Stopwatch clock;
   Stage1Result r = RunNetwork(input, with_features);
-  Finish(input.points, impl_->config, &r);
+  Finish(input.points, impl_->config, &r, input.has_colors() ? &input.colors : nullptr);
   r.timings.Add("total", clock.ElapsedMs());
   return r;
 }

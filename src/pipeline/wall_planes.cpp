@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <random>
 #include <string>
 #include <unordered_set>
@@ -219,9 +220,18 @@ WallPlaneResult ApplyWallPlanes(const std::vector<Eigen::Vector3f>& points,
       (*semantic)[i] = labels::kWall;
       ++result.relabelled;
     }
+    // Stored with the normal into the room (after the relabelling: its cells use this U).
+    if (back > front) best.n = -best.n, best.d = -best.d;
     result.planes.emplace_back(static_cast<float>(best.n.x()), static_cast<float>(best.n.y()), 0.f,
                                static_cast<float>(best.d));
     result.areas.push_back(area);
+    float u_lo = std::numeric_limits<float>::max(), u_hi = -u_lo, z_lo = u_lo, z_hi = -u_lo;
+    for (int i : in) {
+      const float u = static_cast<float>(best.U(points[i]));
+      u_lo = std::min(u_lo, u), u_hi = std::max(u_hi, u);
+      z_lo = std::min(z_lo, points[i].z()), z_hi = std::max(z_hi, points[i].z());
+    }
+    result.extents.emplace_back(u_lo, u_hi, z_lo, z_hi);
   }
   return result;
 }

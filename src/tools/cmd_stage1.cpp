@@ -16,6 +16,7 @@
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -122,6 +123,8 @@ struct Stage1EvalRun : eval::Stage1Metrics {
   std::size_t ceiling_points = 0;  // points removed with them
   std::vector<std::vector<pipeline::ScoredInstance>> predictions;  // per scene (if kept)
   std::vector<std::vector<int>> pred_semantic;  // per scene, per point predicted RFS id (if kept)
+  std::map<int, int> opening_regions;           // wall openings (wall_openings=1) per RFS class
+  std::size_t opening_points = 0;               // points they relabelled
 };
 
 // Every scene through the segmenter, scored against its labels.
@@ -136,6 +139,8 @@ Stage1EvalRun EvaluateScenes(const pipeline::Stage1Segmenter& segmenter,
     // cut.cloud is the scene itself when no ceiling is found.
     const pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(InputOf(s), ceiling);
     pipeline::Stage1Result r = segmenter.Segment(cut.cloud);
+    for (const auto& o : r.wall_openings.regions) ++run.opening_regions[o.rfs_class];
+    run.opening_points += r.wall_openings.relabelled;
     if (cut.found) {
       r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, s.points.size(), -1);
       for (auto& inst : r.instances)
@@ -689,6 +694,12 @@ void RunEval(const EvalArgs& a) {
   PrintEval(r, a.min_objects);
   std::printf("ceiling removed in %d of %zu scenes (%zu points; --ceiling %s)\n", r.ceilings,
               scenes.size(), r.ceiling_points, a.ceiling.c_str());
+  if (inf.wall_openings) {
+    std::printf("wall openings: %zu points relabelled; regions:", r.opening_points);
+    for (const auto& [k, count] : r.opening_regions)
+      std::printf(" %s %d", data::RfsClassNames()[k], count);
+    std::printf("\n");
+  }
   if (!a.json.empty()) {
     std::ofstream f(a.json);
     if (!f) throw Error("cannot write '" + a.json + "'");

@@ -94,7 +94,8 @@ Stage1Proposals RunStage1(const nn::Stage1Model& model, const nn::Stage1Sample& 
   if (seg.uses_color()) input.colors = s.colors;
   Stage1Proposals r;
   r.result = seg.RunNetwork(input, /*with_features=*/true);
-  pipeline::Stage1Segmenter::FinishLabels(input.points, st.config, &r.result);
+  pipeline::Stage1Segmenter::FinishLabels(input.points, st.config, &r.result,
+                                          input.has_colors() ? &input.colors : nullptr);
   pipeline::ClusteringConfig cc = st.config.InstanceConfig().clustering;
   cc.min_points = std::max(1, min_points);
   const pipeline::Stage1Result& o = r.result;

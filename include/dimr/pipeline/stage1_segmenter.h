@@ -20,6 +20,7 @@
 #include "dimr/core/config_fields.h"
 #include "dimr/core/timing.h"
 #include "dimr/nn/stage1_model.h"
+#include "dimr/pipeline/wall_openings.h"
 #include "dimr/pipeline/clustering.h"
 #include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/point_cloud_input.h"
@@ -86,6 +87,15 @@ struct Stage1InferenceConfig {
   bool wall_planes = false;
   double wall_plane_area = 2.0;
   double wall_plane_distance = 0.03;  // m, "wall_plane_distance": points this close are on it
+  // Structure prior (wall_openings.h, needs wall_planes): compact regions of a wall plane whose
+  // door / window / curtain / picture probability is high, or weak but with colour contrast or
+  // recess, take that class ("wall_openings=1"; the thresholds "wall_opening_prob",
+  // "wall_opening_weak", "wall_opening_contrast", "wall_opening_area"). Off by default.
+  bool wall_openings = false;
+  double wall_opening_prob = 0.25;
+  double wall_opening_weak = 0.05;
+  double wall_opening_contrast = 3.0;
+  double wall_opening_area = 0.3;
   ColourRange colour_range;
   // Test-time adaptation of the U-Net's normalisation to the scene (text "scene_norm=w", w in
   // [0, 1]): every network pass normalises with (1 - w) x the training statistics + w x its
@@ -146,6 +156,7 @@ struct Stage1Result : nn::Stage1PointRows {
   int feature_dim = 0;                   // the network's widths[0]
   Eigen::Vector3f network_origin = Eigen::Vector3f::Zero();  // the frame the network saw
   std::vector<ScoredInstance> instances;  // after clustering + NMS, descending score
+  WallOpeningResult wall_openings;        // the regions relabelled (wall_openings=1)
   // Named stages in order: "network" (all passes; its parts "voxelize", "kernel_maps",
   // "unet", "heads" follow), "class_bias", "vote", "clustering" (+ NMS), "total".
   Timings timings;
@@ -183,15 +194,18 @@ class Stage1Segmenter {
   // The two halves of Segment, for callers that re-run the cheap part with other settings
   // (calibration): RunNetwork fills the per-point network outputs (argmax semantic, no bias,
   // no vote, no instances; timings "network" and its parts); Finish applies bias, vote,
-  // clustering and NMS of `config` to them in place.
+  // clustering and NMS of `config` to them in place. `colours` (the input's, 0..1) serve the
+  // wall-openings prior's colour contrast; without them it uses probability and depth only.
   Stage1Result RunNetwork(const PointCloudInput& input, bool with_features = false) const;
   static void Finish(const std::vector<Eigen::Vector3f>& points,
-                     const Stage1InferenceConfig& config, Stage1Result* result);
+                     const Stage1InferenceConfig& config, Stage1Result* result,
+                     const std::vector<Eigen::Vector3f>* colours = nullptr);
   // The first part of Finish: the class bias, the vote and cad_label (timings "class_bias",
   // "vote"), no clustering - for callers that cluster differently, e.g. `dimr stage2 prepare`,
   // which takes every pass's proposals without NMS (ScoredStage1Proposals).
   static void FinishLabels(const std::vector<Eigen::Vector3f>& points,
-                           const Stage1InferenceConfig& config, Stage1Result* result);
+                           const Stage1InferenceConfig& config, Stage1Result* result,
+                           const std::vector<Eigen::Vector3f>* colours = nullptr);
 
  private:
   struct Impl;

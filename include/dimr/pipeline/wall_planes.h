@@ -43,8 +43,12 @@ struct WallPlaneConfig {
 bool WallPlaneOverrides(int rfs_class);
 
 struct WallPlaneResult {
-  std::vector<Eigen::Vector4f> planes;  // (nx, ny, 0, d): nx x + ny y + d = 0, unit normal
-  std::vector<double> areas;            // m² per plane
+  // (nx, ny, 0, d): nx x + ny y + d = 0, unit normal pointing into the room (the side that
+  // holds the more of the cloud).
+  std::vector<Eigen::Vector4f> planes;
+  std::vector<double> areas;  // m² per plane
+  // Per plane the span of its inliers: (u0, u1, z0, z1), u = -ny x + nx y along the plane.
+  std::vector<Eigen::Vector4f> extents;
   std::size_t relabelled = 0;
 };
 
