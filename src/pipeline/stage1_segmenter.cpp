@@ -290,6 +290,11 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
               "wall_opening_area", [](C& c) -> double& { return c.wall_opening_area; }, "m2",
               "wall openings: smallest opening", 0.0, 100.0)
           .WrittenIf([](const C& c) { return c.wall_opening_area != d.wall_opening_area; })
+          .Flag(
+              "wall_opening_shape", [](C& c) -> bool& { return c.wall_opening_shape; },
+              "wall openings: the class by shape (from the wall's foot and tall: door; above "
+              "it: window) instead of the network's probabilities")
+          .WrittenIf([](const C& c) { return c.wall_opening_shape != d.wall_opening_shape; })
           .Number(
               "scene_norm", [](C& c) -> double& { return c.scene_norm; }, "",
               "test-time adaptation: the U-Net's BatchNorm layers normalise with this blend of "
@@ -571,6 +576,7 @@ void Stage1Segmenter::FinishLabels(const std::vector<Eigen::Vector3f>& points,
       open.weak_prob = config.wall_opening_weak;
       open.contrast = config.wall_opening_contrast;
       open.min_area = config.wall_opening_area;
+      open.shape_class = config.wall_opening_shape;
       r->wall_openings = ApplyWallOpenings(points, colours, planes, *r, open, &r->semantic);
     }
   }

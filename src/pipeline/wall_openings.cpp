@@ -5,6 +5,7 @@
 #include <cmath>
 #include <string>
 #include <unordered_map>
+#include <unordered_set>
 
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
@@ -49,6 +50,7 @@ void WallOpeningConfig::Validate() const {
   need(min_area >= 0 && min_area <= 100, "min_area must be in [0, 100] m²");
   need(min_side >= 0 && min_side <= 10, "min_side must be in [0, 10] m");
   need(min_fill >= 0 && min_fill <= 1, "min_fill must be in [0, 1]");
+  need(erode >= 0 && erode <= 20, "erode must be in [0, 20] cells");
 }
 
 WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
@@ -83,6 +85,7 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
     // 1. The band's points, rasterised along the plane (u) and up (z).
     std::unordered_map<std::int64_t, Cell> cells;
     for (std::size_t i = 0; i < n; ++i) {
+      if ((*semantic)[i] != labels::kWall) continue;  // what the network missed, not its objects
       const Eigen::Vector3f& p = points[i];
       const double depth = -(pl.x() * p.x() + pl.y() * p.y() + pl.w());  // > 0: behind
       if (depth < -config.front || depth > config.back) continue;
@@ -133,7 +136,38 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       }
       c.in = distinct;
     }
-    // 4. Regions: 8-connected, in a fixed order (sorted keys) so the result is deterministic.
+    // 4. A morphological opening (erode, then dilate within the cells found) by `erode` cells
+    // removes thin bands - the wall around an object the network did find, whose points lean
+    // towards it - and keeps solid blocks.
+    auto in = [&](std::int64_t q) {
+      auto it = cells.find(q);
+      return it != cells.end() && it->second.in;
+    };
+    auto shifted = [](std::int64_t q, int du, int dz) {
+      const auto [iu, iz] = geometry::UnpackCell2(q);
+      return geometry::PackCell2(std::int64_t{iu} + du, std::int64_t{iz} + dz);
+    };
+    const int r = config.erode;
+    if (r > 0) {
+      std::unordered_set<std::int64_t> core;
+      for (const auto& [key, c] : cells) {
+        if (!c.in) continue;
+        bool all = true;
+        for (int du = -r; du <= r && all; ++du)
+          for (int dz = -r; dz <= r && all; ++dz) all = in(shifted(key, du, dz));
+        if (all) core.insert(key);
+      }
+      std::vector<std::int64_t> drop;
+      for (const auto& [key, c] : cells) {
+        if (!c.in) continue;
+        bool near = false;
+        for (int du = -r; du <= r && !near; ++du)
+          for (int dz = -r; dz <= r && !near; ++dz) near = core.count(shifted(key, du, dz)) > 0;
+        if (!near) drop.push_back(key);
+      }
+      for (std::int64_t q : drop) cells[q].in = false;
+    }
+    // 5. Regions: 8-connected, in a fixed order (sorted keys) so the result is deterministic.
     std::vector<std::int64_t> keys;
     for (const auto& [key, c] : cells)
       if (c.in) keys.push_back(key);
@@ -145,19 +179,18 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       std::vector<std::int64_t> members{seed}, stack{seed};
       region_of[seed] = id;
       while (!stack.empty()) {
-        const auto [iu, iz] = geometry::UnpackCell2(stack.back());
+        const std::int64_t at = stack.back();
         stack.pop_back();
         for (int du = -1; du <= 1; ++du)
           for (int dz = -1; dz <= 1; ++dz) {
-            const std::int64_t q = geometry::PackCell2(std::int64_t{iu} + du, std::int64_t{iz} + dz);
-            auto it = cells.find(q);
-            if (it == cells.end() || !it->second.in || region_of.count(q)) continue;
+            const std::int64_t q = shifted(at, du, dz);
+            if (!in(q) || region_of.count(q)) continue;
             region_of[q] = id;
             members.push_back(q);
             stack.push_back(q);
           }
       }
-      // 5. Shape tests, then the class by the summed probabilities.
+      // 6. Shape tests, then the class by the summed probabilities.
       std::int32_t u_lo = INT32_MAX, u_hi = INT32_MIN, z_lo = INT32_MAX, z_hi = INT32_MIN;
       for (std::int64_t q : members) {
         const auto [iu, iz] = geometry::UnpackCell2(q);
@@ -179,8 +212,19 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
           ++count;
         }
       }
-      const std::size_t best =
+      std::size_t best =
           static_cast<std::size_t>(std::max_element(sum.begin(), sum.end()) - sum.begin());
+      if (config.shape_class) {
+        // The class by shape: from the wall's foot up and tall = door; above it = window.
+        const double above = z_lo * cell - ext.z();
+        const bool to_top = (z_hi + 1) * cell >= ext.w() - 2 * cell;
+        if (above <= config.door_foot && (height >= config.door_height || to_top))
+          best = 0;  // door
+        else if (above >= config.window_sill)
+          best = 1;  // window
+        else
+          continue;
+      }
       WallOpeningRegion r;
       r.rfs_class = kOpeningClasses[best];
       r.plane = static_cast<int>(k);
@@ -190,7 +234,6 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       for (std::int64_t q : members) {
         for (int i : cells[q].points) {
           int& label = (*semantic)[static_cast<std::size_t>(i)];
-          if (label != labels::kWall) continue;
           // A point of the region's border cells that is surely wall stays wall.
           const float* prob = rows.SemanticProb(static_cast<std::size_t>(i));
           double open = 0;
@@ -200,7 +243,7 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
           ++r.relabelled;
         }
       }
-      if (r.relabelled == 0) continue;  // an object the network already labels
+      if (r.relabelled == 0) continue;
       result.relabelled += r.relabelled;
       result.regions.push_back(r);
     }

@@ -22,7 +22,9 @@ using V = Eigen::Vector3f;
 //   C  a stretch of the x = 0 wall (y 1.0-2.0, z 0.5-1.5), wall-coloured, flush: the same
 //      weak P(window) 0.12 and nothing else - must stay wall;
 //   D  a patch 0.15 x 0.15 m on the y = 0 wall with P(picture) 0.6: too small - stays wall;
-//   E  a chair-labelled stretch of the y = 0 wall with P(door) 0.35: only wall labels change.
+//   E  a chair-labelled stretch of the y = 0 wall with P(door) 0.35: only wall labels change;
+//   F  a brown panel 0.6 x 0.6 m at the foot of the y = 0 wall (x 1.5-2.1), P(wall) 0.9: by
+//      colour an opening, by shape neither door (too low) nor window (on the floor).
 // Everywhere else P(wall) 0.9 (walls) or P(floor) 0.9.
 struct Scene {
   std::vector<V> points, colours;
@@ -63,6 +65,8 @@ Scene MakeScene() {
         add(V(x, 0, z), cream, kWall, 'D', kPicture, 0.6f);
       else if (x > 2.5f && x < 3.2f && z < 1.0f)
         add(V(x, 0, z), cream, kChair, 'E', kDoor, 0.35f);
+      else if (x > 1.5f && x < 2.1f && z < 0.6f)
+        add(V(x, 0, z), brown, kWall, 'F', kWall, 0.9f);
       else
         add(V(x, 0, z), cream, kWall, 0, kWall, 0.9f);
       // y = 5 wall: B, the pane behind the opening (the wall itself is absent there).
@@ -103,7 +107,7 @@ TEST(WallOpenings, DoorsAndPanesInTheWallPlaneTakeTheirClassNothingElseChanges) 
   std::vector<int> label = s.label;
   const WallOpeningResult r =
       ApplyWallOpenings(s.points, &s.colours, walls, s.rows, WallOpeningConfig(), &label);
-  std::size_t count[6] = {}, hit[6] = {}, changed_elsewhere = 0;
+  std::size_t count[7] = {}, hit[7] = {}, changed_elsewhere = 0;
   for (std::size_t i = 0; i < label.size(); ++i) {
     const int k = s.region[i] ? s.region[i] - 'A' + 1 : 0;
     ++count[k];
@@ -147,6 +151,37 @@ TEST(WallOpenings, DoorsAndPanesInTheWallPlaneTakeTheirClassNothingElseChanges) 
   std::vector<int> again = s.label;
   ApplyWallOpenings(s.points, &s.colours, walls, s.rows, WallOpeningConfig(), &again);
   EXPECT_EQ(again, label);
+}
+
+TEST(WallOpenings, ShapeClassFromColourAndRecessAlone) {
+  using namespace labels;
+  const Scene s = MakeScene();
+  const WallPlaneResult walls = Planes(s);
+  // Evidence from colour contrast and recess only (the probability thresholds out of play),
+  // the class by shape: A (from the foot, 2 m tall) door, B (sill 0.9 m) window; F (brown,
+  // but 0.6 m tall at the foot) neither; C (wall-coloured, flush) not an opening.
+  WallOpeningConfig shape;
+  shape.seed_prob = 1, shape.weak_prob = 0, shape.contrast = 6, shape.shape_class = true;
+  std::vector<int> label = s.label;
+  const WallOpeningResult r = ApplyWallOpenings(s.points, &s.colours, walls, s.rows, shape, &label);
+  ASSERT_EQ(r.regions.size(), 2u);
+  std::size_t count[7] = {}, hit[7] = {}, changed_elsewhere = 0;
+  for (std::size_t i = 0; i < label.size(); ++i) {
+    const int k = s.region[i] ? s.region[i] - 'A' + 1 : 0;
+    ++count[k];
+    if (k == 1) hit[k] += label[i] == kDoor;
+    if (k == 2) hit[k] += label[i] == kWindow;
+    if (k == 0 || k >= 3) changed_elsewhere += label[i] != s.label[i];
+  }
+  ASSERT_GT(count[6], 800u);  // F exists
+  EXPECT_GT(hit[1], count[1] * 95 / 100) << hit[1] << " of " << count[1] << " door points";
+  EXPECT_GT(hit[2], count[2] * 95 / 100) << hit[2] << " of " << count[2] << " pane points";
+  // Border cells (5 cm) that straddle an opening's edge take their few wall points along.
+  EXPECT_LT(changed_elsewhere, (count[1] + count[2]) / 25);
+  // F is an opening by colour: a lower door height takes it for a door.
+  shape.door_height = 0.5;
+  std::vector<int> low = s.label;
+  EXPECT_EQ(ApplyWallOpenings(s.points, &s.colours, walls, s.rows, shape, &low).regions.size(), 3u);
 }
 
 TEST(WallOpenings, BadInputIsRefusedByName) {

@@ -96,6 +96,7 @@ struct Stage1InferenceConfig {
   double wall_opening_weak = 0.05;
   double wall_opening_contrast = 3.0;
   double wall_opening_area = 0.3;
+  bool wall_opening_shape = false;  // "wall_opening_shape": the class by shape (door / window)
   ColourRange colour_range;
   // Test-time adaptation of the U-Net's normalisation to the scene (text "scene_norm=w", w in
   // [0, 1]): every network pass normalises with (1 - w) x the training statistics + w x its

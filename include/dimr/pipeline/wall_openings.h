@@ -9,8 +9,9 @@
 // summed over the region, name.
 //
 // The rule, per wall plane of ApplyWallPlanes (its normal points into the room):
-//   1. the points in a band around the plane (`front` in front of it, `back` behind it) and
-//      within its span are rasterised into `cell` x `cell` cells of the plane (along it, up);
+//   1. the points labelled wall in a band around the plane (`front` in front of it, `back`
+//      behind it) and within its span are rasterised into `cell` x `cell` cells of the plane
+//      (along it, up) - what the network missed, not the objects it found;
 //   2. per cell: the mean of P(door) + P(window) + P(curtain) + P(picture) over its points
 //      ("opening probability"), its mean colour, its mean depth behind the plane;
 //   3. the plane's wall colour is the median of the colours of cells on the plane that the
@@ -19,11 +20,13 @@
 //   4. a cell is part of an opening when its opening probability reaches `seed_prob`, or
 //      reaches `weak_prob` while its colour contrast reaches `contrast` or it lies `recess`
 //      behind the plane;
-//   5. 8-connected regions of such cells that cover >= `min_area`, whose bounding box is
+//   5. a morphological opening by `erode` cells drops thin bands of such cells (the wall
+//      around an object the network did label, whose points lean towards it); 8-connected
+//      regions of the rest that cover >= `min_area`, whose bounding box is
 //      >= `min_side` on both sides and filled to >= `min_fill`, take the class among door,
 //      window, curtain and picture with the largest probability summed over the region's
-//      points; their points labelled wall whose own opening probability reaches `weak_prob`
-//      get that class (a surely-wall point of a border cell stays). Nothing else changes.
+//      points; their points whose own opening probability reaches `weak_prob` get that class
+//      (a surely-wall point of a border cell stays). Nothing else changes.
 #pragma once
 
 #include <Eigen/Core>
@@ -46,6 +49,12 @@ struct WallOpeningConfig {
   double min_area = 0.3;    // m², smallest opening
   double min_side = 0.3;    // m, both sides of its bounding box
   double min_fill = 0.4;    // cells / bounding-box cells
+  int erode = 2;            // cells: morphological opening of the opening cells
+  // The class by shape instead of probability: a region from the wall's foot (within
+  // `door_foot`) that is `door_height` tall or reaches the wall's top is a door, one whose
+  // bottom is `window_sill` above the foot a window; others stay wall.
+  bool shape_class = false;
+  double door_foot = 0.15, door_height = 1.5, window_sill = 0.3;
   void Validate() const;    // throws dimr::InvalidArgument naming the field
 };
 
