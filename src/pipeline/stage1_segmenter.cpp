@@ -276,10 +276,6 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
               "wall_opening_weak", [](C& c) -> double& { return c.wall_opening_weak; }, "",
               "wall openings: opening probability that counts with colour contrast or recess",
               0.0, 1.0)
-          .Check([](const C& c) -> std::string {
-            return c.wall_opening_weak > c.wall_opening_prob ? "must be <= wall_opening_prob"
-                                                             : "";
-          })
           .WrittenIf([](const C& c) { return c.wall_opening_weak != d.wall_opening_weak; })
           .Number(
               "wall_opening_contrast", [](C& c) -> double& { return c.wall_opening_contrast; },

@@ -44,7 +44,7 @@ void WallOpeningConfig::Validate() const {
   need(front >= 0 && front <= 0.5, "front must be in [0, 0.5] m");
   need(back >= 0 && back <= 1, "back must be in [0, 1] m");
   need(seed_prob > 0 && seed_prob <= 1, "seed_prob must be in (0, 1]");
-  need(weak_prob >= 0 && weak_prob <= seed_prob, "weak_prob must be in [0, seed_prob]");
+  need(weak_prob >= 0 && weak_prob <= 1, "weak_prob must be in [0, 1]");  // > seed_prob: moot
   need(contrast > 0 && contrast <= 100, "contrast must be in (0, 100]");
   need(recess > 0 && recess <= 1, "recess must be in (0, 1] m");
   need(min_area >= 0 && min_area <= 100, "min_area must be in [0, 100] m²");
@@ -215,12 +215,18 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       std::size_t best =
           static_cast<std::size_t>(std::max_element(sum.begin(), sum.end()) - sum.begin());
       if (config.shape_class) {
+        // An opening is in or behind the wall's face; what stands in front of it hangs on it
+        // (a picture, a board, a screen).
+        double depth = 0;
+        for (std::int64_t q : members) depth += cells[q].depth * cells[q].points.size();
+        depth /= static_cast<double>(count);
+        if (depth < -config.max_proud) continue;
         // The class by shape: from the wall's foot up and tall = door; above it = window.
         const double above = z_lo * cell - ext.z();
         const bool to_top = (z_hi + 1) * cell >= ext.w() - 2 * cell;
         if (above <= config.door_foot && (height >= config.door_height || to_top))
           best = 0;  // door
-        else if (above >= config.window_sill)
+        else if (above >= config.window_sill && depth >= config.window_recess)
           best = 1;  // window
         else
           continue;

@@ -236,6 +236,16 @@ void RunRealEval(const RealEvalArgs& a) {
               r.timings.ms("total") / 1000.0, in.points.size(),
               voxel > 0 ? (" (voxel means, " + Num(voxel, 3) + " m)").c_str() : "");
 
+  if (inf.wall_openings) {
+    std::printf("wall openings: %zu regions, %zu network points relabelled\n",
+                r.wall_openings.regions.size(), r.wall_openings.relabelled);
+    for (const auto& o : r.wall_openings.regions) {
+      std::printf("  %s: %.2f x %.2f m from z = %.2f m, %.2f m², mean P %.2f, %zu of %zu points\n",
+                  labels::RfsClassNames()[o.rfs_class], o.width, o.height, o.z_min, o.area,
+                  o.probability, o.relabelled, o.points);
+    }
+  }
+
   // Semantic: RFS 25 from NYU40; DODA 11 straight from NYU40; CAD 8 from RFS.
   const int n = static_cast<int>(c.points.size());
   const std::vector<int> gt25 = Rfs25Labels(c);
@@ -268,6 +278,16 @@ void RunRealEval(const RealEvalArgs& a) {
   j["semantic_doda11"] = ReportJson(s11);
   j["semantic_cad8"] = ReportJson(s8);
   j["predicted_instances"] = r.instances.size();
+  j["wall_openings"] = json::array();
+  for (const auto& o : r.wall_openings.regions) {
+    j["wall_openings"].push_back({{"class", labels::RfsClassNames()[o.rfs_class]},
+                                  {"width", o.width},
+                                  {"height", o.height},
+                                  {"z_min", o.z_min},
+                                  {"area", o.area},
+                                  {"probability", o.probability},
+                                  {"relabelled", o.relabelled}});
+  }
 
   // Scan2CAD objects.
   std::vector<std::vector<int>> gt_sets;

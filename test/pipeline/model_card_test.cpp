@@ -62,8 +62,8 @@ TEST(ModelCard, ReadsTheShippedStage1Card) {
   // A quoted value followed by a comment: the text inside the quotes.
   const std::string inf = card.GetString("recommended_inference");
   EXPECT_EQ(inf.rfind("passes=s0.12,s0.2,s0.3 rotations=6", 0), 0u) << inf;
-  // "... cluster_cap=0 wall_planes=1 wall_plane_distance=0.02": the quote ends before the comment.
-  const std::string tail = " cluster_cap=0 wall_planes=1 wall_plane_distance=0.02";
+  // "... wall_opening_contrast=6 wall_opening_shape=1": the quote ends before the comment.
+  const std::string tail = " wall_opening_contrast=6 wall_opening_shape=1";
   ASSERT_GT(inf.size(), tail.size()) << inf;
   EXPECT_EQ(inf.substr(inf.size() - tail.size()), tail) << inf;
   EXPECT_EQ(card.GetInt("training.steps"), 9719);

@@ -50,6 +50,16 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
             "passes=s0.12,s0.2,o0.03 rotations=6 mirror=1 vote_radius=0.08 vote_min_points=5 "
             "vote_exclude=window,picture nms=0.25");
   EXPECT_EQ(Stage1InferenceConfig::FromString(c.ToString()).ToString(), c.ToString());
+  // The wall-openings keys (only those off their defaults are written).
+  const std::string openings =
+      "wall_openings=1 wall_opening_prob=1 wall_opening_weak=0 wall_opening_contrast=6 "
+      "wall_opening_shape=1";
+  c = Stage1InferenceConfig::FromString(openings);
+  EXPECT_TRUE(c.wall_openings && c.wall_opening_shape);
+  EXPECT_DOUBLE_EQ(c.wall_opening_weak, 0.0);
+  EXPECT_DOUBLE_EQ(c.wall_opening_contrast, 6.0);
+  EXPECT_NE(c.ToString().find(openings), std::string::npos) << c.ToString();
+  EXPECT_EQ(Stage1InferenceConfig::FromString(c.ToString()).ToString(), c.ToString());
   std::string bias = "class_bias=";
   for (int k = 0; k < 25; ++k) bias += (k ? "," : "") + std::to_string(k % 3 - 1);
   EXPECT_FLOAT_EQ(Stage1InferenceConfig::FromString(bias).class_bias[2], 1.0f);
@@ -66,6 +76,8 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
       {"class_bias=0.1,0.2", "2 values, expected 25"},
       {"vote_exclude=sofa2", "'sofa2' is not an RFS class name"},
       {"scene_norm=1.5", "'scene_norm=1.5'"},
+      {"wall_opening_prob=0", "'wall_opening_prob=0'"},
+      {"wall_opening_contrast=-1", "'wall_opening_contrast=-1'"},
       {"vote_min_extent=sofa", "not CLASS:VALUE"},
       {"vote_min_extent=sofas:0.8", "'sofas' is not an RFS class name"},
       {"vote_min_extent=sofa:-1", "finite number >= 0"},

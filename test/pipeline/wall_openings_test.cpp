@@ -208,9 +208,9 @@ TEST(WallOpenings, BadInputIsRefusedByName) {
   expect_message([&] { ApplyWallOpenings(s.points, &s.colours, walls, rows, {}, &label); },
                  "probability table");
   WallOpeningConfig bad;
-  bad.weak_prob = 0.5;  // above seed_prob
+  bad.cell = 0;
   expect_message([&] { ApplyWallOpenings(s.points, &s.colours, walls, s.rows, bad, &label); },
-                 "weak_prob");
+                 "cell must be");
   // No planes: nothing changes.
   EXPECT_TRUE(ApplyWallOpenings(s.points, &s.colours, WallPlaneResult(), s.rows, {}, &label)
                   .regions.empty());

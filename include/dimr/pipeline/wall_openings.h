@@ -52,9 +52,12 @@ struct WallOpeningConfig {
   int erode = 2;            // cells: morphological opening of the opening cells
   // The class by shape instead of probability: a region from the wall's foot (within
   // `door_foot`) that is `door_height` tall or reaches the wall's top is a door, one whose
-  // bottom is `window_sill` above the foot a window; others stay wall.
+  // bottom is `window_sill` above the foot and that lies `window_recess` behind the wall's
+  // face on average a window; others stay wall, and so does a region
+  // whose mean depth is more than `max_proud` in front of the plane (it hangs on the wall).
   bool shape_class = false;
-  double door_foot = 0.15, door_height = 1.5, window_sill = 0.3;
+  double door_foot = 0.15, door_height = 1.5, window_sill = 0.3, max_proud = 0.01;
+  double window_recess = 0.01;  // m: a window's mean depth behind the plane (glass is set back)
   void Validate() const;    // throws dimr::InvalidArgument naming the field
 };
 
