@@ -1,12 +1,19 @@
 // Structure prior for stage 1's labels, the complement of wall_planes.h: flat objects that sit
-// *in* a wall plane - a closed door leaf, a window pane, a curtain hanging flat - are labelled
-// wall by the network whatever their colour (docs/real.md "Where the v2 test gap is": 13 of
-// 20 closed doors and every flat curtain of 40 SynthScan v2 test rooms; scene0470_00's window
-// 85 % wall, its door 38 %). The network's per-point argmax says "wall" there, but its
-// probabilities usually still lean towards the object, and the object differs from the wall
-// around it in colour or sits behind the wall's face. A region of the wall plane that is
-// large, compact and carries that evidence becomes the object the network's probabilities,
-// summed over the region, name.
+// *in* a wall plane - a closed door leaf, a window pane - are labelled wall by the network
+// whatever their colour (docs/real.md "Where the v2 test gap is": 13 of 20 closed doors of 40
+// SynthScan v2 test rooms; scene0470_00's window 85 % wall, its door 38 %; SynthScan pane
+// rooms, `dimr synth --window-pane`: 71 % of the pane points). A region of the wall plane that
+// is large and compact and differs from the wall around it becomes the object.
+//
+// Two ways to call a region, both measured (docs/real.md "Wall openings"):
+//   - by the network's probabilities (`shape_class` false): the evidence is P(door) + P(window)
+//     + P(curtain) + P(picture), the class their largest sum. Measured: it does not work - on
+//     plain wall points the network already gives these classes ~0.25 together (missed door
+//     points ~0.33, missed panes ~0.34 with P(window) only 0.04), so the regions are mostly
+//     wall (v2 validation mIoU -0.02) and panes would take picture or curtain;
+//   - by colour contrast / recess and shape (`shape_class` true, `seed_prob` 1, `weak_prob` 0:
+//     the stage-1 card's setting since 2026-12-07): a region from the wall's foot that is tall
+//     is a door, one above a sill and set back behind the wall's face a window.
 //
 // The rule, per wall plane of ApplyWallPlanes (its normal points into the room):
 //   1. the points labelled wall in a band around the plane (`front` in front of it, `back`
