@@ -269,18 +269,17 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
           .WrittenIf([](const C& c) { return c.wall_openings != d.wall_openings; })
           .Number(
               "wall_opening_prob", [](C& c) -> double& { return c.wall_opening_prob; }, "",
-              "wall openings: opening probability that alone puts a cell in an opening", 0.01,
-              1.0)
+              "wall openings: opening probability that alone puts a cell in an opening", 0.01, 1.0)
           .WrittenIf([](const C& c) { return c.wall_opening_prob != d.wall_opening_prob; })
           .Number(
               "wall_opening_weak", [](C& c) -> double& { return c.wall_opening_weak; }, "",
-              "wall openings: opening probability that counts with colour contrast or recess",
-              0.0, 1.0)
+              "wall openings: opening probability that counts with colour contrast or recess", 0.0,
+              1.0)
           .WrittenIf([](const C& c) { return c.wall_opening_weak != d.wall_opening_weak; })
           .Number(
-              "wall_opening_contrast", [](C& c) -> double& { return c.wall_opening_contrast; },
-              "", "wall openings: colour contrast (robust z-score against the wall's colour)",
-              0.1, 100.0)
+              "wall_opening_contrast", [](C& c) -> double& { return c.wall_opening_contrast; }, "",
+              "wall openings: colour contrast (robust z-score against the wall's colour)", 0.1,
+              100.0)
           .WrittenIf([](const C& c) { return c.wall_opening_contrast != d.wall_opening_contrast; })
           .Number(
               "wall_opening_area", [](C& c) -> double& { return c.wall_opening_area; }, "m2",

@@ -17,15 +17,15 @@ namespace {
 // The classes an opening can take; their probabilities summed are the opening probability.
 constexpr std::array<int, 4> kOpeningClasses = {labels::kDoor, labels::kWindow, labels::kCurtain,
                                                 labels::kPicture};
-constexpr double kOnPlane = 0.02;      // m: a cell this close to the plane can define its colour
+constexpr double kOnPlane = 0.02;       // m: a cell this close to the plane can define its colour
 constexpr double kMinColourMad = 0.02;  // floor of the wall colour's spread (0..1 colours)
 
 struct Cell {
   std::vector<int> points;
   Eigen::Vector3d colour = Eigen::Vector3d::Zero();  // mean
-  double depth = 0;                                   // mean, > 0 behind the plane
-  double open = 0;                                    // mean opening probability
-  double wall = 0;                                    // mean P(wall)
+  double depth = 0;                                  // mean, > 0 behind the plane
+  double open = 0;                                   // mean opening probability
+  double wall = 0;                                   // mean P(wall)
   bool in = false;
 };
 
@@ -91,7 +91,8 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       if (depth < -config.front || depth > config.back) continue;
       const double u = -pl.y() * p.x() + pl.x() * p.y();
       if (u < ext.x() - cell || u > ext.y() + cell) continue;
-      Cell& c = cells[geometry::PackCell2(geometry::CellOf(u, cell), geometry::CellOf(p.z(), cell))];
+      Cell& c =
+          cells[geometry::PackCell2(geometry::CellOf(u, cell), geometry::CellOf(p.z(), cell))];
       c.points.push_back(static_cast<int>(i));
       const float* prob = rows.SemanticProb(i);
       for (int cls : kOpeningClasses) c.open += prob[cls];
@@ -208,7 +209,8 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       for (std::int64_t q : members) {
         for (int i : cells[q].points) {
           const float* prob = rows.SemanticProb(static_cast<std::size_t>(i));
-          for (std::size_t j = 0; j < kOpeningClasses.size(); ++j) sum[j] += prob[kOpeningClasses[j]];
+          for (std::size_t j = 0; j < kOpeningClasses.size(); ++j)
+            sum[j] += prob[kOpeningClasses[j]];
           ++count;
         }
       }

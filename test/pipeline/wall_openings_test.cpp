@@ -55,7 +55,8 @@ Scene MakeScene() {
   const V cream(0.85f, 0.82f, 0.74f), brown(0.45f, 0.3f, 0.18f), glass(0.55f, 0.62f, 0.7f);
   const float g = 0.02f;
   for (int i = 0; i <= 200; ++i)
-    for (int j = 0; j <= 250; ++j) add(V(g * i, g * j, 0), V(0.5f, 0.45f, 0.4f), kFloor, 0, kFloor, 0.9f);
+    for (int j = 0; j <= 250; ++j)
+      add(V(g * i, g * j, 0), V(0.5f, 0.45f, 0.4f), kFloor, 0, kFloor, 0.9f);
   for (int k = 1; k <= 120; ++k) {
     const float z = g * k;
     for (int i = 0; i <= 200; ++i) {
@@ -90,6 +91,23 @@ Scene MakeScene() {
   return s;
 }
 
+// Per region (0 = none, 1..6 = A..F): points, and of A / B those now door / window; points
+// outside A and B whose label changed.
+struct Tally {
+  std::size_t count[7] = {}, hit[7] = {}, changed_elsewhere = 0;
+};
+Tally Count(const Scene& s, const std::vector<int>& label) {
+  Tally t;
+  for (std::size_t i = 0; i < label.size(); ++i) {
+    const int k = s.region[i] ? s.region[i] - 'A' + 1 : 0;
+    ++t.count[k];
+    if (k == 1) t.hit[k] += label[i] == labels::kDoor;
+    if (k == 2) t.hit[k] += label[i] == labels::kWindow;
+    if (k == 0 || k >= 3) t.changed_elsewhere += label[i] != s.label[i];
+  }
+  return t;
+}
+
 WallPlaneResult Planes(const Scene& s) {
   std::vector<int> copy = s.label;
   return ApplyWallPlanes(s.points, WallPlaneConfig(), &copy);
@@ -107,14 +125,10 @@ TEST(WallOpenings, DoorsAndPanesInTheWallPlaneTakeTheirClassNothingElseChanges) 
   std::vector<int> label = s.label;
   const WallOpeningResult r =
       ApplyWallOpenings(s.points, &s.colours, walls, s.rows, WallOpeningConfig(), &label);
-  std::size_t count[7] = {}, hit[7] = {}, changed_elsewhere = 0;
-  for (std::size_t i = 0; i < label.size(); ++i) {
-    const int k = s.region[i] ? s.region[i] - 'A' + 1 : 0;
-    ++count[k];
-    if (k == 1) hit[k] += label[i] == kDoor;
-    if (k == 2) hit[k] += label[i] == kWindow;
-    if (k == 0 || k >= 3) changed_elsewhere += label[i] != s.label[i];
-  }
+  const Tally t = Count(s, label);
+  const auto& count = t.count;
+  const auto& hit = t.hit;
+  const std::size_t changed_elsewhere = t.changed_elsewhere;
   ASSERT_GT(count[1], 2000u);
   ASSERT_GT(count[2], 2000u);
   EXPECT_GT(hit[1], count[1] * 95 / 100) << hit[1] << " of " << count[1] << " door points";
@@ -165,14 +179,10 @@ TEST(WallOpenings, ShapeClassFromColourAndRecessAlone) {
   std::vector<int> label = s.label;
   const WallOpeningResult r = ApplyWallOpenings(s.points, &s.colours, walls, s.rows, shape, &label);
   ASSERT_EQ(r.regions.size(), 2u);
-  std::size_t count[7] = {}, hit[7] = {}, changed_elsewhere = 0;
-  for (std::size_t i = 0; i < label.size(); ++i) {
-    const int k = s.region[i] ? s.region[i] - 'A' + 1 : 0;
-    ++count[k];
-    if (k == 1) hit[k] += label[i] == kDoor;
-    if (k == 2) hit[k] += label[i] == kWindow;
-    if (k == 0 || k >= 3) changed_elsewhere += label[i] != s.label[i];
-  }
+  const Tally t = Count(s, label);
+  const auto& count = t.count;
+  const auto& hit = t.hit;
+  const std::size_t changed_elsewhere = t.changed_elsewhere;
   ASSERT_GT(count[6], 800u);  // F exists
   EXPECT_GT(hit[1], count[1] * 95 / 100) << hit[1] << " of " << count[1] << " door points";
   EXPECT_GT(hit[2], count[2] * 95 / 100) << hit[2] << " of " << count[2] << " pane points";
@@ -197,9 +207,8 @@ TEST(WallOpenings, BadInputIsRefusedByName) {
     }
   };
   std::vector<int> short_labels(10, 0);
-  expect_message(
-      [&] { ApplyWallOpenings(s.points, &s.colours, walls, s.rows, {}, &short_labels); },
-      "labels");
+  expect_message([&] { ApplyWallOpenings(s.points, &s.colours, walls, s.rows, {}, &short_labels); },
+                 "labels");
   std::vector<V> few_colours(3);
   expect_message([&] { ApplyWallOpenings(s.points, &few_colours, walls, s.rows, {}, &label); },
                  "colours");

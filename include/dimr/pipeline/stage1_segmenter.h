@@ -20,11 +20,11 @@
 #include "dimr/core/config_fields.h"
 #include "dimr/core/timing.h"
 #include "dimr/nn/stage1_model.h"
-#include "dimr/pipeline/wall_openings.h"
 #include "dimr/pipeline/clustering.h"
 #include "dimr/pipeline/colour_norm.h"
 #include "dimr/pipeline/point_cloud_input.h"
 #include "dimr/pipeline/stage1_instances.h"
+#include "dimr/pipeline/wall_openings.h"
 
 namespace dimr::nn {
 class Stage1Model;

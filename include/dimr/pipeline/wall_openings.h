@@ -65,18 +65,18 @@ struct WallOpeningConfig {
   bool shape_class = false;
   double door_foot = 0.15, door_height = 1.5, window_sill = 0.3, max_proud = 0.01;
   double window_recess = 0.01;  // m: a window's mean depth behind the plane (glass is set back)
-  void Validate() const;    // throws dimr::InvalidArgument naming the field
+  void Validate() const;        // throws dimr::InvalidArgument naming the field
 };
 
 struct WallOpeningRegion {
   int rfs_class = -1;
-  int plane = -1;            // index into WallPlaneResult::planes
-  double area = 0;           // m² of cells
-  double width = 0;          // m along the wall
-  double height = 0;         // m
-  double z_min = 0;          // m, lowest cell
-  double probability = 0;    // mean P(rfs_class) over the region's points
-  std::size_t points = 0;    // in the region
+  int plane = -1;          // index into WallPlaneResult::planes
+  double area = 0;         // m² of cells
+  double width = 0;        // m along the wall
+  double height = 0;       // m
+  double z_min = 0;        // m, lowest cell
+  double probability = 0;  // mean P(rfs_class) over the region's points
+  std::size_t points = 0;  // in the region
   std::size_t relabelled = 0;
 };
 
