@@ -19,6 +19,7 @@ constexpr std::array<int, 4> kOpeningClasses = {labels::kDoor, labels::kWindow, 
                                                 labels::kPicture};
 constexpr double kOnPlane = 0.02;       // m: a cell this close to the plane can define its colour
 constexpr double kMinColourMad = 0.02;  // floor of the wall colour's spread (0..1 colours)
+constexpr double kMinPointsPerCell = 2.0;  // fewer per occupied cell: the raster is too fine
 
 struct Cell {
   std::vector<int> points;
@@ -78,27 +79,41 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
   }
 
   WallOpeningResult result;
-  const double cell = config.cell;
   for (std::size_t k = 0; k < walls.planes.size(); ++k) {
     const Eigen::Vector4f& pl = walls.planes[k];
     const Eigen::Vector4f& ext = walls.extents[k];
     // 1. The band's points, rasterised along the plane (u) and up (z).
-    std::unordered_map<std::int64_t, Cell> cells;
-    for (std::size_t i = 0; i < n; ++i) {
-      if ((*semantic)[i] != labels::kWall) continue;  // what the network missed, not its objects
-      const Eigen::Vector3f& p = points[i];
-      const double depth = -(pl.x() * p.x() + pl.y() * p.y() + pl.w());  // > 0: behind
-      if (depth < -config.front || depth > config.back) continue;
-      const double u = -pl.y() * p.x() + pl.x() * p.y();
-      if (u < ext.x() - cell || u > ext.y() + cell) continue;
-      Cell& c =
-          cells[geometry::PackCell2(geometry::CellOf(u, cell), geometry::CellOf(p.z(), cell))];
-      c.points.push_back(static_cast<int>(i));
-      const float* prob = rows.SemanticProb(i);
-      for (int cls : kOpeningClasses) c.open += prob[cls];
-      c.wall += prob[labels::kWall];
-      c.depth += depth;
-      if (colours != nullptr) c.colour += (*colours)[i].cast<double>();
+    auto rasterise = [&](double cell) {
+      std::unordered_map<std::int64_t, Cell> cells;
+      for (std::size_t i = 0; i < n; ++i) {
+        if ((*semantic)[i] != labels::kWall) continue;  // what the network missed
+        const Eigen::Vector3f& p = points[i];
+        const double depth = -(pl.x() * p.x() + pl.y() * p.y() + pl.w());  // > 0: behind
+        if (depth < -config.front || depth > config.back) continue;
+        const double u = -pl.y() * p.x() + pl.x() * p.y();
+        if (u < ext.x() - cell || u > ext.y() + cell) continue;
+        Cell& c =
+            cells[geometry::PackCell2(geometry::CellOf(u, cell), geometry::CellOf(p.z(), cell))];
+        c.points.push_back(static_cast<int>(i));
+        const float* prob = rows.SemanticProb(i);
+        for (int cls : kOpeningClasses) c.open += prob[cls];
+        c.wall += prob[labels::kWall];
+        c.depth += depth;
+        if (colours != nullptr) c.colour += (*colours)[i].cast<double>();
+      }
+      return cells;
+    };
+    double cell = config.cell;
+    std::unordered_map<std::int64_t, Cell> cells = rasterise(cell);
+    // A sparse cloud (e.g. 4.5 cm voxel means, `dimr reconstruct --input-voxel auto`, on a wall
+    // that is not axis-aligned) leaves empty cells inside surfaces, which the opening below
+    // would read as edges: then cells of twice the edge.
+    std::size_t band_points = 0;
+    for (const auto& [key, c] : cells) band_points += c.points.size();
+    if (!cells.empty() &&
+        static_cast<double>(band_points) < kMinPointsPerCell * static_cast<double>(cells.size())) {
+      cell = 2 * config.cell;
+      cells = rasterise(cell);
     }
     if (cells.empty()) continue;
     for (auto& [key, c] : cells) {
@@ -148,7 +163,11 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       const auto [iu, iz] = geometry::UnpackCell2(q);
       return geometry::PackCell2(std::int64_t{iu} + du, std::int64_t{iz} + dz);
     };
-    const int r = config.erode;
+    // The same opening in metres whatever the cell.
+    const int r =
+        config.erode == 0
+            ? 0
+            : std::max(1, static_cast<int>(std::lround(config.erode * config.cell / cell)));
     if (r > 0) {
       std::unordered_set<std::int64_t> core;
       for (const auto& [key, c] : cells) {

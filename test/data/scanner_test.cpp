@@ -22,10 +22,14 @@ using geometry::Vec3;
 
 // DefaultModesArePinned: TestRoom, SmallScanner with 8 frames, seed 11. The mesh-mode pin is
 // with Embree capped at AVX2 (kEmbreeConfig in data/scanner.cpp); before the cap it depended on
-// the machine's instruction set (15079 points where it was first recorded).
+// the machine's instruction set (15079 points where it was first recorded). Recorded on an AMD
+// EPYC (AVX2); an Intel Xeon (AVX-512, 2026-12-07) gives 14567 points, xyz 138466.059, rgb
+// 15168499 (1.1 % / 0.9 % / 1.1 % off) with the same binary code and a bit-identical raw scan,
+// so mesh mode is held to kPinMeshTolerance and the raw mode exactly.
 constexpr std::size_t kPinMeshPoints = 14728;
 constexpr double kPinMeshXyz = 139755.517;
 constexpr long long kPinMeshRgb = 15330827;
+constexpr double kPinMeshTolerance = 0.03;  // relative, for points, xyz and rgb
 constexpr std::size_t kPinRawPoints = 28100;
 constexpr double kPinRawXyz = 268432.535;
 constexpr long long kPinRawRgb = 29408717;
@@ -321,9 +325,11 @@ TEST(ScannerTest, DefaultModesArePinned) {
   const ScanResult mesh = ScanRoom(room, c, 11);
   fingerprint(mesh, &xyz, &rgb);
   std::printf("mesh: %zu points, xyz %.9g, rgb %lld\n", mesh.points.size(), xyz, rgb);
-  EXPECT_EQ(mesh.points.size(), kPinMeshPoints);
-  EXPECT_NEAR(xyz, kPinMeshXyz, 1e-6 * std::abs(kPinMeshXyz));
-  EXPECT_EQ(rgb, kPinMeshRgb);
+  EXPECT_NEAR(static_cast<double>(mesh.points.size()), static_cast<double>(kPinMeshPoints),
+              kPinMeshTolerance * kPinMeshPoints);
+  EXPECT_NEAR(xyz, kPinMeshXyz, kPinMeshTolerance * std::abs(kPinMeshXyz));
+  EXPECT_NEAR(static_cast<double>(rgb), static_cast<double>(kPinMeshRgb),
+              kPinMeshTolerance * kPinMeshRgb);
   c.density = ScanDensity::kRaw;
   const ScanResult raw = ScanRoom(room, c, 11);
   fingerprint(raw, &xyz, &rgb);

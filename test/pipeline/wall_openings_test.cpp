@@ -194,6 +194,40 @@ TEST(WallOpenings, ShapeClassFromColourAndRecessAlone) {
   EXPECT_EQ(ApplyWallOpenings(s.points, &s.colours, walls, s.rows, shape, &low).regions.size(), 3u);
 }
 
+// Every point kept with probability `keep` (rows and all), e.g. a sparse scan.
+Scene Thinned(const Scene& s, double keep) {
+  Scene t;
+  std::mt19937 rng(11);
+  std::bernoulli_distribution take(keep);
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    if (!take(rng)) continue;
+    t.points.push_back(s.points[i]);
+    t.colours.push_back(s.colours[i]);
+    t.label.push_back(s.label[i]);
+    t.region.push_back(s.region[i]);
+    const float* row = s.rows.SemanticProb(i);
+    t.rows.semantic_prob.insert(t.rows.semantic_prob.end(), row, row + labels::kNumRfsClasses);
+  }
+  return t;
+}
+
+TEST(WallOpenings, SparseCloudsUseCoarserCells) {
+  // 20 % of the 2 cm grid (about one point per 4.5 cm, as voxel means at SynthScan's density):
+  // ~1.25 points per 5 cm cell, a quarter of the cells empty - a 5-cell opening would erode
+  // every region away; the raster falls back to 10 cm cells and finds both.
+  const Scene s = Thinned(MakeScene(), 0.2);
+  WallOpeningConfig shape;
+  shape.seed_prob = 1, shape.weak_prob = 0, shape.contrast = 6, shape.shape_class = true;
+  std::vector<int> label = s.label;
+  const WallOpeningResult r =
+      ApplyWallOpenings(s.points, &s.colours, Planes(s), s.rows, shape, &label);
+  ASSERT_EQ(r.regions.size(), 2u);
+  const Tally t = Count(s, label);
+  EXPECT_GT(t.hit[1], t.count[1] * 9 / 10) << t.hit[1] << " of " << t.count[1];
+  EXPECT_GT(t.hit[2], t.count[2] * 9 / 10) << t.hit[2] << " of " << t.count[2];
+  EXPECT_LT(t.changed_elsewhere, (t.count[1] + t.count[2]) / 10);
+}
+
 TEST(WallOpenings, BadInputIsRefusedByName) {
   const Scene s = MakeScene();
   const WallPlaneResult walls = Planes(s);
