@@ -19,7 +19,7 @@ constexpr std::array<int, 4> kOpeningClasses = {labels::kDoor, labels::kWindow, 
                                                 labels::kPicture};
 constexpr double kOnPlane = 0.02;       // m: a cell this close to the plane can define its colour
 constexpr double kMinColourMad = 0.02;  // floor of the wall colour's spread (0..1 colours)
-constexpr double kMinPointsPerCell = 2.0;  // fewer per occupied cell: the raster is too fine
+constexpr double kMinPointsPerCell = 1.5;  // fewer per occupied cell: the raster is too fine
 
 struct Cell {
   std::vector<int> points;
