@@ -18,7 +18,8 @@
 // The rule, per wall plane of ApplyWallPlanes (its normal points into the room):
 //   1. the points labelled wall in a band around the plane (`front` in front of it, `back`
 //      behind it) and within its span are rasterised into `cell` x `cell` cells of the plane
-//      (along it, up) - what the network missed, not the objects it found;
+//      (along it, up) - what the network missed, not the objects it found; a plane with fewer
+//      than 1.5 points per occupied cell (4.5 cm voxel means) is rasterised at twice the edge;
 //   2. per cell: the mean of P(door) + P(window) + P(curtain) + P(picture) over its points
 //      ("opening probability"), its mean colour, its mean depth behind the plane;
 //   3. the plane's wall colour is the median of the colours of cells on the plane that the
