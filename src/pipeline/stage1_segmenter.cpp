@@ -263,9 +263,10 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
           .WrittenIf([](const C& c) { return c.wall_plane_distance != d.wall_plane_distance; })
           .Flag(
               "wall_openings", [](C& c) -> bool& { return c.wall_openings; },
-              "structure prior: compact regions of a wall plane that the network gives door / "
-              "window / curtain / picture probability (with colour contrast or recess when it "
-              "is weak) take that class")
+              "structure prior: compact regions of a wall plane still labelled wall that differ "
+              "from it (colour contrast or recess; or door / window / curtain / picture "
+              "probability) become door or window by shape (wall_opening_shape) or the class "
+              "of their largest probability")
           .WrittenIf([](const C& c) { return c.wall_openings != d.wall_openings; })
           .Number(
               "wall_opening_prob", [](C& c) -> double& { return c.wall_opening_prob; }, "",
