@@ -717,6 +717,11 @@ void RunEval(const EvalArgs& a) {
     j["ceiling"] = a.ceiling;
     j["ceiling_scenes"] = r.ceilings;
     j["ceiling_points"] = r.ceiling_points;
+    if (inf.wall_openings) {
+      nlohmann::json regions = nlohmann::json::object();
+      for (const auto& [k, count] : r.opening_regions) regions[data::RfsClassNames()[k]] = count;
+      j["wall_openings"] = {{"points_relabelled", r.opening_points}, {"regions", regions}};
+    }
     f << j.dump(2) << "\n";
   }
   if (a.render > 0) {
