@@ -9,6 +9,7 @@
 
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
+#include "dimr/core/quantile.h"
 #include "dimr/geometry/grid_key.h"
 
 namespace dimr::pipeline {
@@ -30,9 +31,10 @@ struct Cell {
   bool in = false;
 };
 
-double Median(std::vector<double> v) {
-  std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2), v.end());
-  return v[v.size() / 2];
+double OpeningProbability(const float* prob) {
+  double open = 0;
+  for (int cls : kOpeningClasses) open += prob[cls];
+  return open;
 }
 
 }  // namespace
@@ -66,17 +68,11 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
   if (colours != nullptr && colours->size() != n)
     throw InvalidArgument("wall openings: " + std::to_string(n) + " points but " +
                           std::to_string(colours->size()) + " colours");
-  if (rows.point_row.empty() ? rows.NumRows() != n : rows.point_row.size() != n)
-    throw InvalidArgument("wall openings: the probability table does not cover the " +
-                          std::to_string(n) + " points");
+  nn::CheckPointRows("wall openings", "semantic_prob", rows.semantic_prob.size(),
+                     labels::kNumRfsClasses, n, rows.point_row);
   if (walls.extents.size() != walls.planes.size())
     throw InvalidArgument("wall openings: " + std::to_string(walls.planes.size()) +
                           " wall planes but " + std::to_string(walls.extents.size()) + " extents");
-  for (std::size_t i = 0; i < rows.point_row.size(); ++i) {
-    if (rows.point_row[i] < 0 || static_cast<std::size_t>(rows.point_row[i]) >= rows.NumRows())
-      throw InvalidArgument("wall openings: point " + std::to_string(i) +
-                            " has no probability row");
-  }
 
   WallOpeningResult result;
   for (std::size_t k = 0; k < walls.planes.size(); ++k) {
@@ -96,7 +92,7 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
             cells[geometry::PackCell2(geometry::CellOf(u, cell), geometry::CellOf(p.z(), cell))];
         c.points.push_back(static_cast<int>(i));
         const float* prob = rows.SemanticProb(i);
-        for (int cls : kOpeningClasses) c.open += prob[cls];
+        c.open += OpeningProbability(prob);
         c.wall += prob[labels::kWall];
         c.depth += depth;
         if (colours != nullptr) c.colour += (*colours)[i].cast<double>();
@@ -132,9 +128,9 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
       if (ch[0].size() >= 20) {
         have_colour = true;
         for (int j = 0; j < 3; ++j) {
-          wall_colour[j] = Median(ch[j]);
+          wall_colour[j] = NearestRankQuantile(&ch[j], 0.5);
           for (double& v : ch[j]) v = std::abs(v - wall_colour[j]);
-          wall_mad[j] = std::max(1.4826 * Median(ch[j]), kMinColourMad);
+          wall_mad[j] = std::max(1.4826 * NearestRankQuantile(&ch[j], 0.5), kMinColourMad);
         }
       }
     }
@@ -192,20 +188,17 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
     for (const auto& [key, c] : cells)
       if (c.in) keys.push_back(key);
     std::sort(keys.begin(), keys.end());
-    std::unordered_map<std::int64_t, int> region_of;
+    std::unordered_set<std::int64_t> seen;
     for (std::int64_t seed : keys) {
-      if (region_of.count(seed)) continue;
-      const int id = static_cast<int>(region_of.size());
+      if (!seen.insert(seed).second) continue;
       std::vector<std::int64_t> members{seed}, stack{seed};
-      region_of[seed] = id;
       while (!stack.empty()) {
         const std::int64_t at = stack.back();
         stack.pop_back();
         for (int du = -1; du <= 1; ++du)
           for (int dz = -1; dz <= 1; ++dz) {
             const std::int64_t q = shifted(at, du, dz);
-            if (!in(q) || region_of.count(q)) continue;
-            region_of[q] = id;
+            if (!in(q) || !seen.insert(q).second) continue;
             members.push_back(q);
             stack.push_back(q);
           }
@@ -262,10 +255,8 @@ WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
         for (int i : cells[q].points) {
           int& label = (*semantic)[static_cast<std::size_t>(i)];
           // A point of the region's border cells that is surely wall stays wall.
-          const float* prob = rows.SemanticProb(static_cast<std::size_t>(i));
-          double open = 0;
-          for (int cls : kOpeningClasses) open += prob[cls];
-          if (open < config.weak_prob) continue;
+          if (OpeningProbability(rows.SemanticProb(static_cast<std::size_t>(i))) < config.weak_prob)
+            continue;
           label = r.rfs_class;
           ++r.relabelled;
         }

@@ -249,7 +249,7 @@ TEST(WallOpenings, BadInputIsRefusedByName) {
   nn::Stage1PointRows rows = s.rows;
   rows.semantic_prob.resize(rows.semantic_prob.size() / 2);
   expect_message([&] { ApplyWallOpenings(s.points, &s.colours, walls, rows, {}, &label); },
-                 "probability table");
+                 "semantic_prob has");
   WallOpeningConfig bad;
   bad.cell = 0;
   expect_message([&] { ApplyWallOpenings(s.points, &s.colours, walls, s.rows, bad, &label); },

@@ -89,7 +89,8 @@ struct WallOpeningResult {
 // Relabels `semantic` (RFS classes, one per point) in place. `rows` holds the network's
 // per-point class probabilities (after the class bias); `colours` (0..1, one per point) may be
 // null: then only probability and recess count. Deterministic. Throws dimr::InvalidArgument
-// for sizes that differ or a probability table that does not cover the points.
+// for sizes that differ or a probability table that does not cover the points
+// (nn::CheckPointRows).
 WallOpeningResult ApplyWallOpenings(const std::vector<Eigen::Vector3f>& points,
                                     const std::vector<Eigen::Vector3f>* colours,
                                     const WallPlaneResult& walls, const nn::Stage1PointRows& rows,
