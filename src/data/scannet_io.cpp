@@ -111,6 +111,10 @@ int RfsFromCategory(const std::string& raw) {
                                                     {"trash_bin", kTrashBin},
                                                     {"recycling bin", kTrashBin},
                                                     {"shelf", kOtherShelf},
+                                                    {"shelves", kOtherShelf},
+                                                    {"television", kDisplay},
+                                                    {"refridgerator", kRefridgerator},
+                                                    {"refrigerator", kRefridgerator},
                                                     {"other_shelf", kOtherShelf},
                                                     {"other_table", kOtherTable}};
   const auto it = kAlias.find(Lower(raw));

@@ -163,6 +163,13 @@ NpyArray ParseNpy(const std::uint8_t* data, std::size_t size, const std::string&
   return a;
 }
 
+NpyArray ReadNpy(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw ParseError(path, "cannot open file");
+  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return ParseNpy(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size(), path);
+}
+
 std::map<std::string, NpyArray> ReadNpz(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw ParseError(path, "cannot open file");

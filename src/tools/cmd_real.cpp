@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
@@ -17,10 +18,13 @@
 #include "dimr/core/timing.h"
 #include "dimr/data/cad_library.h"
 #include "dimr/data/scan2cad_io.h"
+#include "dimr/data/scannet_io.h"
 #include "dimr/data/scan2cad_relabel.h"
 #include "dimr/data/shapenet_io.h"
 #include "dimr/eval/mesh_metrics.h"
+#include "dimr/eval/npz.h"
 #include "dimr/eval/real_eval.h"
+#include "dimr/eval/real_import.h"
 #include "dimr/eval/stage1_metrics.h"
 #include "dimr/geometry/obj_io.h"
 #include "dimr/geometry/ply_io.h"
@@ -156,6 +160,38 @@ std::vector<int> Rfs25Labels(const StatsCloud& c) {
 }
 
 // ---------------------------------------------------------------- real eval
+// The scene's own annotated objects of a CAD class (instance ids of a ScanNet scene read with
+// its aggregation): point sets, CAD class (by the RFS label of the object's points, which the
+// aggregation makes the same for all of them), an axis-aligned box and a name. False when the
+// scene has no instance annotation.
+bool AnnotatedCadObjects(const StatsCloud& c, std::vector<std::vector<int>>* sets,
+                         std::vector<int>* cad_class, std::vector<geometry::OrientedBox>* boxes,
+                         std::vector<std::string>* names) {
+  std::map<int, std::vector<int>> points_of;
+  for (std::size_t i = 0; i < c.instance.size(); ++i) {
+    if (c.instance[i] > 0) points_of[c.instance[i]].push_back(static_cast<int>(i));
+  }
+  if (points_of.empty() || c.semantic.size() != c.instance.size()) return false;
+  for (const auto& [id, idx] : points_of) {
+    const int rfs = c.semantic[idx.front()];
+    const int cad = rfs >= 0 && rfs < labels::kNumRfsClasses ? labels::RfsToCad(rfs) : -1;
+    if (cad < 0) continue;
+    geometry::Vec3 lo = c.points[idx.front()], hi = lo;
+    for (int i : idx) {
+      lo = lo.cwiseMin(c.points[i]);
+      hi = hi.cwiseMax(c.points[i]);
+    }
+    geometry::OrientedBox box;
+    box.center = 0.5 * (lo + hi);
+    box.size = hi - lo;
+    sets->push_back(idx);
+    cad_class->push_back(cad);
+    boxes->push_back(box);
+    names->push_back("obj " + std::to_string(id));
+  }
+  return true;
+}
+
 struct RealEvalArgs {
   std::string scene, scan2cad, json, render_dir;
   InferenceArgs inference;
@@ -296,23 +332,35 @@ void RunRealEval(const RealEvalArgs& a) {
   std::vector<eval::ObjectMatch> matches;
   std::vector<eval::PredictedInstance> preds;
   for (const auto& inst : r.instances) preds.push_back({inst.cad_class, inst.score, inst.points});
+  // Ground-truth objects: the points in the Scan2CAD boxes (--scan2cad) or, without it, the
+  // scene's own object annotation (aggregation + segments, e.g. a `dimr real import`ed scene).
+  std::vector<std::string> ids;
+  std::string gt_title, gt_what;
   if (!a.scan2cad.empty()) {
     const Scan2CadObjects objects =
         ReadScan2CadObjects(a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
     gt_sets = objects.points;
     gt_class = objects.cad_class;
     gt_boxes = objects.boxes;
-    const std::vector<std::string>& ids = objects.id_cad;
-    const std::string& excluded = objects.excluded;
+    ids = objects.id_cad;
+    gt_title = "Scan2CAD objects (GT = scan points inside the aligned CAD box" +
+               std::string(a.box_margin != 0 ? ", margin " + Num(a.box_margin, 3) + " m" : "") +
+               (objects.excluded.empty() ? ""
+                                         : ", without points the scan labels " + objects.excluded) +
+               ")";
+    gt_what = "Scan2CAD box points";
+  } else if (AnnotatedCadObjects(c, &gt_sets, &gt_class, &gt_boxes, &ids)) {
+    gt_title = "annotated objects (GT = the scene's own object annotation, CAD classes)";
+    gt_what = "the scene's annotated objects";
+  }
+  if (!gt_sets.empty()) {
     matches = eval::MatchObjects(gt_sets, gt_class, preds, a.iou);
     int found = 0;
     std::printf(
-        "\n#### Scan2CAD objects (GT = scan points inside the aligned CAD box%s)\n\n| # | class "
-        "| CAD | GT points | best IoU, same class | best IoU, any class (its class) | found "
-        "| GT labels (labels.ply) | predicted as |\n|---|---|---|---|---|---|---|---|---|\n",
-        (std::string(a.box_margin != 0 ? ", margin " + Num(a.box_margin, 3) + " m" : "") +
-         (excluded.empty() ? "" : ", without points the scan labels " + excluded))
-            .c_str());
+        "\n#### %s\n\n| # | class "
+        "| CAD / object | GT points | best IoU, same class | best IoU, any class (its class) | "
+        "found | GT labels | predicted as |\n|---|---|---|---|---|---|---|---|---|\n",
+        gt_title.c_str());
     // The two largest classes among an object's box points, by the scan's labels and by the
     // prediction: says whether a miss is the box (floor / other objects inside it), the
     // semantics or the instance grouping.
@@ -372,9 +420,8 @@ void RunRealEval(const RealEvalArgs& a) {
     acc.Add(e);
     const eval::Stage1Metrics m = acc.Result();
     std::printf(
-        "instance AP over the CAD classes present (Scan2CAD box points as GT): AP@50 %s, "
-        "AP@25 %s, AP %s",
-        Num(m.instances.map50).c_str(), Num(m.instances.map25).c_str(),
+        "instance AP over the CAD classes present (%s as GT): AP@50 %s, AP@25 %s, AP %s",
+        gt_what.c_str(), Num(m.instances.map50).c_str(), Num(m.instances.map25).c_str(),
         Num(m.instances.map).c_str());
     std::string per;
     for (int k = 0; k < labels::kNumCadClasses; ++k) {
@@ -423,7 +470,8 @@ void RunRealEval(const RealEvalArgs& a) {
           if (matches[k].best_index == static_cast<int>(p)) colour = static_cast<int>(k);
         for (int q : preds[p].points) pi.point_colors[q] = PaletteColour(colour);
       }
-      gi.title = "Scan2CAD objects (points in the aligned boxes)";
+      gi.title = a.scan2cad.empty() ? "annotated objects (CAD classes)"
+                                    : "Scan2CAD objects (points in the aligned boxes)";
       pi.title = "predicted instances";
       const std::string ins = (fs::path(a.render_dir) / (c.name + "_instances.png")).string();
       RenderScenePanels({gi, pi}, 720, 560, ins);
@@ -666,6 +714,66 @@ void SetupRealExportGt(CLI::App& app) {
   app.callback([a]() { RunRealExportGt(*a); });
 }
 
+// ---------------------------------------------------------------- real import
+struct RealImportArgs {
+  std::string vertices, labels, instances, name, out;
+};
+
+// Per-vertex arrays of a real scene (numpy .npy) -> a ScanNet scene folder OUT/NAME/.
+void RunRealImport(const RealImportArgs& a) {
+  eval::LabelledVertexSources src;
+  src.vertices = a.vertices;
+  src.nyu40 = a.labels;
+  src.instance = a.instances;
+  const data::SynthScene s =
+      eval::SceneFromLabelledVertices(a.name, eval::ReadNpy(a.vertices), eval::ReadNpy(a.labels),
+                                      eval::ReadNpy(a.instances), src);
+  data::WriteScanNetScene(a.out, s);
+  std::map<int, int> objects_of;  // per RFS class (-1: none)
+  std::vector<int> cad_objects(labels::kNumCadClasses, 0);
+  for (const auto& inst : s.instances) {
+    ++objects_of[inst.rfs_class];
+    if (inst.cad_class >= 0) ++cad_objects[inst.cad_class];
+  }
+  std::size_t labelled = 0;
+  for (int l : s.semantic) labelled += l != data::kSemanticIgnore;
+  std::printf("%s: %zu vertices (%zu with an RFS class), %zu objects -> %s\n", a.name.c_str(),
+              s.points.size(), labelled, s.instances.size(),
+              (fs::path(a.out) / a.name).string().c_str());
+  std::string per;
+  for (const auto& [rfs, k] : objects_of) {
+    per += (per.empty() ? "" : ", ") +
+           std::string(rfs >= 0 ? labels::RfsClassNames()[rfs] : "(no RFS class)") + " " +
+           std::to_string(k);
+  }
+  std::printf("objects per RFS class: %s\n", per.c_str());
+  per.clear();
+  for (int k = 0; k < labels::kNumCadClasses; ++k) {
+    if (cad_objects[k] == 0) continue;
+    per += (per.empty() ? "" : ", ") + std::string(labels::CadClassNames()[k]) + " " +
+           std::to_string(cad_objects[k]);
+  }
+  std::printf("CAD-class objects (instance AP ground truth): %s\n",
+              per.empty() ? "none" : per.c_str());
+}
+
+void SetupRealImport(CLI::App& app) {
+  auto a = std::make_shared<RealImportArgs>();
+  app.add_option("--vertices", a->vertices,
+                 "N x 6 (x y z r g b) or N x 3 mesh vertices (.npy), e.g. mmdetection3d's "
+                 "<scene>_vert_all.npy")
+      ->required();
+  app.add_option("--labels", a->labels,
+                 "N NYU40 ids (.npy; 0 = unannotated), e.g. <scene>_sem_label_all.npy")
+      ->required();
+  app.add_option("--instances", a->instances,
+                 "N object ids (.npy; 0 = none), e.g. <scene>_ins_label_all.npy")
+      ->required();
+  app.add_option("--name", a->name, "scene name (the folder and file prefix)")->required();
+  app.add_option("--out", a->out, "folder to write the scene folder into")->required();
+  app.callback([a]() { RunRealImport(*a); });
+}
+
 const Registrar kRealEval("real", "eval",
                           "Stage 1 on a real ScanNet scene with labels.ply (NYU40) and an optional "
                           "Scan2CAD alignment: mIoU (RFS 25, DODA 11, CAD 8), objects found",
@@ -674,6 +782,10 @@ const Registrar kRealBsp("real", "bsp",
                          "BSP-CVAE IoU@32^3 and Chamfer distance on the CAD models of a real "
                          "ShapeNet tree",
                          &SetupRealBsp);
+const Registrar kRealImport("real", "import",
+                            "A real scene given as per-vertex .npy arrays (vertices, NYU40 ids, "
+                            "object ids) -> a ScanNet scene folder for dimr real eval",
+                            &SetupRealImport);
 const Registrar kRealExportGt("real", "export-gt",
                               "Mesh-metric ground truth of a real scene from its Scan2CAD "
                               "alignment (for dimr reconstruct + dimr eval)",

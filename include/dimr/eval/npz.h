@@ -21,6 +21,8 @@ struct NpyArray {
 
 // Parses one .npy file held in memory; `source` names it in errors.
 NpyArray ParseNpy(const std::uint8_t* data, std::size_t size, const std::string& source);
+// One .npy file (numpy.save). Throws dimr::ParseError naming the file.
+NpyArray ReadNpy(const std::string& path);
 // All arrays of an .npz archive, by name without the ".npy" suffix.
 std::map<std::string, NpyArray> ReadNpz(const std::string& path);
 // Writes arrays as an uncompressed .npz (float64 for "f8", uint8 for "u1", int64 for "i8").
