@@ -176,6 +176,10 @@ void SemanticVoteConfig::Validate() const {
                             " is negative");
     }
   }
+  if (!(std::isfinite(max_extent) && max_extent >= 0.0)) {
+    throw InvalidArgument("SemanticVoteConfig.max_extent: must be finite and >= 0, got " +
+                          std::to_string(max_extent));
+  }
   for (std::size_t c = 0; c < min_extent.size(); ++c) {
     if (!(std::isfinite(min_extent[c]) && min_extent[c] >= 0.0)) {
       throw InvalidArgument("SemanticVoteConfig.min_extent: class " + std::to_string(c) +
@@ -259,10 +263,34 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   }
   std::vector<int> out = semantic;
   if (config.radius == 0.0) return out;
-  const std::vector<std::vector<int>> clusters =
-      config.neighbour_cap
-          ? BfsClusters(shifted, thing_label, config.radius, config.min_points)
-          : RadiusComponents(shifted, thing_label, config.radius, config.min_points);
+  const auto cluster_at = [&config](const std::vector<Eigen::Vector3f>& p,
+                                    const std::vector<int>& label, double radius) {
+    return config.neighbour_cap ? BfsClusters(p, label, radius, config.min_points)
+                                : RadiusComponents(p, label, radius, config.min_points);
+  };
+  std::vector<std::vector<int>> clusters;
+  {
+    // Oversized clusters (max_extent) split at half the radius, up to three times.
+    std::vector<std::pair<std::vector<int>, double>> todo;
+    for (auto& c : cluster_at(shifted, thing_label, config.radius)) {
+      todo.emplace_back(std::move(c), config.radius);
+    }
+    while (!todo.empty()) {
+      auto [cluster, radius] = std::move(todo.back());
+      todo.pop_back();
+      if (config.max_extent <= 0.0 || FootprintLongSide(points, cluster) <= config.max_extent) {
+        clusters.push_back(std::move(cluster));
+        continue;
+      }
+      if (radius < config.radius * 0.2) continue;  // split three times: per-point labels stay
+      std::vector<Eigen::Vector3f> sub(cluster.size());
+      for (std::size_t k = 0; k < cluster.size(); ++k) sub[k] = shifted[cluster[k]];
+      for (auto& part : cluster_at(sub, std::vector<int>(cluster.size(), 0), 0.5 * radius)) {
+        for (int& i : part) i = cluster[i];
+        todo.emplace_back(std::move(part), 0.5 * radius);
+      }
+    }
+  }
   std::vector<double> sum(num_classes);
   for (const auto& cluster : clusters) {
     std::fill(sum.begin(), sum.end(), 0.0);

@@ -331,6 +331,13 @@ const config::Fields<Stage1InferenceConfig>& Stage1InferenceConfig::Fields() {
                 },
                 [](const C& c) { return !c.vote_min_extent.empty(); }})
           .Number(
+              "vote_max_extent", [](C& c) -> double& { return c.vote_max_extent; }, "m",
+              "longest plausible object in the vote: a cluster whose footprint is longer is "
+              "several objects and is split by clustering it again at half the radius (at most "
+              "three times; what stays too long keeps its per-point labels); 0 = no limit",
+              0.0, 100.0)
+          .WrittenIf([](const C& c) { return c.vote_max_extent != d.vote_max_extent; })
+          .Number(
               "cluster_min_points", [](C& c) -> int& { return c.cluster_min_points; }, "points",
               "smallest cluster a pass keeps", 1, 1000000000)
           .WrittenIf([](const C& c) { return c.cluster_min_points != d.cluster_min_points; })
@@ -419,6 +426,7 @@ Stage1InstanceConfig Stage1InferenceConfig::InstanceConfig() const {
   cfg.semantic_vote.min_points = vote_min_points;
   cfg.semantic_vote.excluded_classes = vote_exclude;
   cfg.semantic_vote.min_extent = vote_min_extent;
+  cfg.semantic_vote.max_extent = vote_max_extent;
   cfg.class_bias = class_bias;
   return cfg;
 }

@@ -62,6 +62,7 @@ TEST(ModelCard, ReadsTheShippedStage1Card) {
   // A quoted value followed by a comment: the text inside the quotes.
   const std::string inf = card.GetString("recommended_inference");
   EXPECT_EQ(inf.rfind("passes=s0.12,s0.2,s0.3 rotations=6", 0), 0u) << inf;
+  EXPECT_NE(inf.find(" vote_max_extent=3 "), std::string::npos) << inf;
   // "... wall_opening_contrast=6 wall_opening_shape=1": the quote ends before the comment.
   const std::string tail = " wall_opening_contrast=6 wall_opening_shape=1";
   ASSERT_GT(inf.size(), tail.size()) << inf;

@@ -173,6 +173,51 @@ TEST(VoteSemantics, ClustersTooSmallForTheirClassTakeTheBestClassTheyCan) {
   EXPECT_THROW(cfg.Validate(), InvalidArgument);
 }
 
+TEST(VoteSemantics, ClustersLongerThanAnyObjectAreSplitBeforeTheyVote) {
+  // Two objects side by side in the room (X: x in [0, 1.2], Y: x in [2, 3.2]) whose shifted
+  // points (poor offsets, as on real scans) form one chain at the vote radius 0.1: X's land on
+  // x in [0, 0.28], Y's on [0.36, 0.68], 8 cm apart. X's points say class 2, Y's (more of them)
+  // class 1: one vote gives both class 1. With max_extent 2 m the 3.2 m cluster is split at
+  // radius 0.05 and each object keeps its own class.
+  Scene s;
+  for (int i = 0; i < 8; ++i) {
+    s.Add(Eigen::Vector3f(0.15f * i, 0, 0.4f), Eigen::Vector3f(0.04f * i, 0, 0.4f),
+          {0.0f, 0.3f, 0.6f, 0.1f});
+  }
+  const std::size_t n_x = s.points.size();
+  for (int i = 0; i < 9; ++i) {
+    s.Add(Eigen::Vector3f(2.0f + 0.15f * i, 0, 0.4f), Eigen::Vector3f(0.36f + 0.04f * i, 0, 0.4f),
+          {0.0f, 0.7f, 0.2f, 0.1f});
+  }
+  // A third object, 3.2 m long whose shifted points are one dense run (1 cm apart): no split
+  // separates it, so its mixed per-point labels stay.
+  for (int i = 0; i < 17; ++i) {
+    const std::vector<float> row =
+        i % 3 == 0 ? std::vector<float>{0.0f, 0.1f, 0.1f, 0.8f} : std::vector<float>{0.0f, 0.6f, 0.3f, 0.1f};
+    s.Add(Eigen::Vector3f(0.2f * i, 5, 0.4f), Eigen::Vector3f(0.01f * i, 5, 0.4f), row);
+  }
+  SemanticVoteConfig cfg;
+  cfg.radius = 0.1;
+  cfg.min_points = 3;
+  auto run = [&](const SemanticVoteConfig& c) {
+    return VoteSemantics(s.points, s.offsets, s.semantic, s.prob, kIsThing, c);
+  };
+  const std::vector<int> merged = run(cfg);
+  for (std::size_t i = 0; i < n_x + 9; ++i) EXPECT_EQ(merged[i], 1) << i;
+  for (std::size_t i = n_x + 9; i < s.points.size(); ++i) EXPECT_EQ(merged[i], 1) << i;
+  cfg.max_extent = 2.0;
+  const std::vector<int> split = run(cfg);
+  for (std::size_t i = 0; i < n_x + 9; ++i) EXPECT_EQ(split[i], i < n_x ? 2 : 1) << i;
+  for (std::size_t i = n_x + 9; i < s.points.size(); ++i) EXPECT_EQ(split[i], s.semantic[i]) << i;
+  // A limit above every cluster changes nothing; a bad one is refused.
+  cfg.max_extent = 4.0;
+  EXPECT_EQ(run(cfg), merged);
+  cfg.max_extent = -1.0;
+  EXPECT_THROW(cfg.Validate(), InvalidArgument);
+  cfg.max_extent = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(cfg.Validate(), InvalidArgument);
+}
+
 TEST(VoteSemantics, BadInputsGiveClearErrors) {
   Scene s;
   s.Add(Eigen::Vector3f(0, 0, 0), Eigen::Vector3f(0, 0, 0), {0.0f, 1.0f, 0.0f, 0.0f});

@@ -60,6 +60,11 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
   EXPECT_DOUBLE_EQ(c.wall_opening_contrast, 6.0);
   EXPECT_NE(c.ToString().find(openings), std::string::npos) << c.ToString();
   EXPECT_EQ(Stage1InferenceConfig::FromString(c.ToString()).ToString(), c.ToString());
+  // vote_max_extent: written when set, reaches the vote's config.
+  c = Stage1InferenceConfig::FromString("vote_radius=0.065 vote_max_extent=3");
+  EXPECT_DOUBLE_EQ(c.InstanceConfig().semantic_vote.max_extent, 3.0);
+  EXPECT_NE(c.ToString().find("vote_max_extent=3"), std::string::npos) << c.ToString();
+  EXPECT_EQ(Stage1InferenceConfig().ToString().find("vote_max_extent"), std::string::npos);
   std::string bias = "class_bias=";
   for (int k = 0; k < 25; ++k) bias += (k ? "," : "") + std::to_string(k % 3 - 1);
   EXPECT_FLOAT_EQ(Stage1InferenceConfig::FromString(bias).class_bias[2], 1.0f);
@@ -71,6 +76,7 @@ TEST(Stage1InferenceConfig, TextRoundTripAndStrictValues) {
       {"mirror=2", "'mirror=2'"},
       {"vote_radius=-1", "'vote_radius=-1'"},
       {"vote_radius=nan", "'vote_radius=nan'"},
+      {"vote_max_extent=-2", "'vote_max_extent=-2'"},
       {"passes=s0.1,x0.2", "x0.2"},
       {"passes=", "'passes='"},
       {"class_bias=0.1,0.2", "2 values, expected 25"},

@@ -27,6 +27,13 @@ struct SemanticVoteConfig {
   // cluster's original (unshifted) points on the floor plane: 2nd to 98th percentile along
   // their principal horizontal axis. Empty = no limits; else one value per class, 0 = none.
   std::vector<double> min_extent;
+  // Longest plausible object (metres; 0 = no limit): a cluster whose footprint long side (as
+  // min_extent measures it) exceeds it is not one object but several whose shifted points
+  // joined - on real scans a sofa, its table and the bed beside them can form one component,
+  // and its vote would give all of them one class. Such a cluster is split by clustering its
+  // shifted points again at half the radius (at most three times, radius / 8); the parts vote
+  // on their own, points of no part and parts still too long keep their per-point labels.
+  double max_extent = 0.0;
   // The reference's neighbour cap in the vote's BFS (false: RadiusComponents, as
   // ClusteringConfig::neighbour_cap).
   bool neighbour_cap = true;

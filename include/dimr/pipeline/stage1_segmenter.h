@@ -77,6 +77,9 @@ struct Stage1InferenceConfig {
   // long side is below the value of a class cannot take it (text
   // "vote_min_extent=sofa:0.8"); empty = none, else 25 values.
   std::vector<double> vote_min_extent;
+  // Longest plausible object in the vote (SemanticVoteConfig::max_extent, "vote_max_extent=3"):
+  // a longer cluster is split (re-clustered at half the radius); 0 = no limit.
+  double vote_max_extent = 0.0;
   // Per-scene colour standardisation (colour_norm.h): a scene whose colour mean / spread lie
   // outside the training rooms' range is mapped to the nearest in-range statistics (text
   // "colour_norm=<12 values>", `dimr stage1 colour-stats`); off when colour_norm is false.
