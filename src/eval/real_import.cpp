@@ -38,14 +38,16 @@ std::vector<int> IntegerColumn(const NpyArray& a, std::int64_t n, int lo, int hi
 
 const char* Nyu40ClassName(int nyu40) {
   static const std::array<const char*, 40> kNames = {
-      "wall",          "floor",       "cabinet",        "bed",        "chair",
-      "sofa",          "table",       "door",           "window",     "bookshelf",
-      "picture",       "counter",     "blinds",         "desk",       "shelves",
-      "curtain",       "dresser",     "pillow",         "mirror",     "floor mat",
-      "clothes",       "ceiling",     "books",          "refridgerator", "television",
-      "paper",         "towel",       "shower curtain", "box",        "whiteboard",
-      "person",        "night stand", "toilet",         "sink",       "lamp",
-      "bathtub",       "bag",         "otherstructure", "otherfurniture", "otherprop"};
+      "wall",       "floor",          "cabinet",        "bed",
+      "chair",      "sofa",           "table",          "door",
+      "window",     "bookshelf",      "picture",        "counter",
+      "blinds",     "desk",           "shelves",        "curtain",
+      "dresser",    "pillow",         "mirror",         "floor mat",
+      "clothes",    "ceiling",        "books",          "refridgerator",
+      "television", "paper",          "towel",          "shower curtain",
+      "box",        "whiteboard",     "person",         "night stand",
+      "toilet",     "sink",           "lamp",           "bathtub",
+      "bag",        "otherstructure", "otherfurniture", "otherprop"};
   return nyu40 >= 1 && nyu40 <= 40 ? kNames[nyu40 - 1] : "";
 }
 
@@ -55,9 +57,9 @@ data::SynthScene SceneFromLabelledVertices(const std::string& name, const NpyArr
   if (vertices.shape.size() != 2 || (vertices.shape[1] != 3 && vertices.shape[1] < 6)) {
     std::string shape;
     for (auto d : vertices.shape) shape += (shape.empty() ? "" : " x ") + std::to_string(d);
-    throw ParseError(sources.vertices,
-                     "expected N x 3 (x y z) or N x >= 6 (x y z r g b) vertices, got shape [" +
-                         shape + "]");
+    throw ParseError(
+        sources.vertices,
+        "expected N x 3 (x y z) or N x >= 6 (x y z r g b) vertices, got shape [" + shape + "]");
   }
   const std::int64_t n = vertices.shape[0];
   const std::int64_t cols = vertices.shape[1];

@@ -20,8 +20,8 @@
 #include "dimr/core/timing.h"
 #include "dimr/data/cad_library.h"
 #include "dimr/data/scan2cad_io.h"
-#include "dimr/data/scannet_io.h"
 #include "dimr/data/scan2cad_relabel.h"
+#include "dimr/data/scannet_io.h"
 #include "dimr/data/shapenet_io.h"
 #include "dimr/eval/mesh_metrics.h"
 #include "dimr/eval/npz.h"
@@ -365,11 +365,11 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
     gt_class = objects.cad_class;
     gt_boxes = objects.boxes;
     ids = objects.id_cad;
-    gt_title = "Scan2CAD objects (GT = scan points inside the aligned CAD box" +
-               std::string(a.box_margin != 0 ? ", margin " + Num(a.box_margin, 3) + " m" : "") +
-               (objects.excluded.empty() ? ""
-                                         : ", without points the scan labels " + objects.excluded) +
-               ")";
+    gt_title =
+        "Scan2CAD objects (GT = scan points inside the aligned CAD box" +
+        std::string(a.box_margin != 0 ? ", margin " + Num(a.box_margin, 3) + " m" : "") +
+        (objects.excluded.empty() ? "" : ", without points the scan labels " + objects.excluded) +
+        ")";
     gt_what = "Scan2CAD box points";
   } else if (AnnotatedCadObjects(c, &gt_sets, &gt_class, &gt_boxes, &ids)) {
     gt_title = "annotated objects (GT = the scene's own object annotation, CAD classes)";
@@ -445,10 +445,9 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
     acc.Add(e);
     pool->ap.Add(e);
     const eval::Stage1Metrics m = acc.Result();
-    std::printf(
-        "instance AP over the CAD classes present (%s as GT): AP@50 %s, AP@25 %s, AP %s",
-        gt_what.c_str(), Num(m.instances.map50).c_str(), Num(m.instances.map25).c_str(),
-        Num(m.instances.map).c_str());
+    std::printf("instance AP over the CAD classes present (%s as GT): AP@50 %s, AP@25 %s, AP %s",
+                gt_what.c_str(), Num(m.instances.map50).c_str(), Num(m.instances.map25).c_str(),
+                Num(m.instances.map).c_str());
     std::string per;
     for (int k = 0; k < labels::kNumCadClasses; ++k) {
       if (std::isnan(m.instances.class_ap50[k])) continue;
@@ -529,21 +528,21 @@ void RunRealEval(const RealEvalArgs& a) {
       std::printf("\n### %s\n\n", fs::path(p).filename().string().c_str());
       out["scenes"].push_back(EvaluateRealScene(a, p, seg, inf, source, true, &pool));
     }
-    std::printf("\n### all %zu scenes (pooled)\n\n| scene | points | RFS-25 mIoU | DODA-11 mIoU | "
-                "objects found | AP@50 |\n|---|---|---|---|---|---|\n",
-                paths.size());
+    std::printf(
+        "\n### all %zu scenes (pooled)\n\n| scene | points | RFS-25 mIoU | DODA-11 mIoU | "
+        "objects found | AP@50 |\n|---|---|---|---|---|---|\n",
+        paths.size());
     for (const json& s : out["scenes"]) {
-      std::printf("| %s | %d | %s | %s | %s | %s |\n", s["scene"].get<std::string>().c_str(),
-                  s["points"].get<int>(),
-                  Num(s["semantic_rfs25"]["miou_present"].get<double>()).c_str(),
-                  Num(s["semantic_doda11"]["miou_present"].get<double>()).c_str(),
-                  s.contains("found") ? (std::to_string(s["found"].get<int>()) + " of " +
-                                         std::to_string(s["objects_total"].get<int>()))
-                                            .c_str()
-                                      : "-",
-                  s.contains("instance_ap50_cad")
-                      ? Num(s["instance_ap50_cad"].get<double>()).c_str()
-                      : "-");
+      std::printf(
+          "| %s | %d | %s | %s | %s | %s |\n", s["scene"].get<std::string>().c_str(),
+          s["points"].get<int>(), Num(s["semantic_rfs25"]["miou_present"].get<double>()).c_str(),
+          Num(s["semantic_doda11"]["miou_present"].get<double>()).c_str(),
+          s.contains("found") ? (std::to_string(s["found"].get<int>()) + " of " +
+                                 std::to_string(s["objects_total"].get<int>()))
+                                    .c_str()
+                              : "-",
+          s.contains("instance_ap50_cad") ? Num(s["instance_ap50_cad"].get<double>()).c_str()
+                                          : "-");
     }
     const auto names25 = Names(labels::RfsClassNames().data(), labels::kNumRfsClasses);
     const auto names11 = Names(eval::DodaClassNames().data(), eval::kNumDodaClasses);
@@ -825,9 +824,8 @@ void RunRealImport(const RealImportArgs& a) {
   src.vertices = a.vertices;
   src.nyu40 = a.labels;
   src.instance = a.instances;
-  const data::SynthScene s =
-      eval::SceneFromLabelledVertices(a.name, eval::ReadNpy(a.vertices), eval::ReadNpy(a.labels),
-                                      eval::ReadNpy(a.instances), src);
+  const data::SynthScene s = eval::SceneFromLabelledVertices(
+      a.name, eval::ReadNpy(a.vertices), eval::ReadNpy(a.labels), eval::ReadNpy(a.instances), src);
   data::WriteScanNetScene(a.out, s);
   std::map<int, int> objects_of;  // per RFS class (-1: none)
   std::vector<int> cad_objects(labels::kNumCadClasses, 0);

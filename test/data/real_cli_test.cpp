@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli_run.h"
+#include "npy_bytes.h"
 
 namespace {
 
@@ -24,24 +25,15 @@ using dimr::testing::RunCli;
 
 // numpy.save of a C-order array of 4-byte values ("<f4" or "<u4").
 template <typename T>
-void WriteNpy(const fs::path& path, const std::string& descr, const std::vector<int>& shape,
+void WriteNpy(const fs::path& path, const std::string& descr, const std::vector<long long>& shape,
               const std::vector<T>& values) {
-  std::string dims;
-  for (int d : shape) dims += std::to_string(d) + ", ";
-  std::string header =
-      "{'descr': '" + descr + "', 'fortran_order': False, 'shape': (" + dims + "), }";
-  header.append(128 - 10 - header.size() - 1, ' ');
-  header += '\n';
-  std::string bytes("\x93NUMPY\x01\x00", 8);
-  bytes.push_back(static_cast<char>(header.size()));
-  bytes.push_back('\0');
-  bytes += header;
-  bytes.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(T));
-  std::ofstream(path, std::ios::binary) << bytes;
+  std::ofstream(path, std::ios::binary)
+      << dimr::testing::NpyBytes(descr, shape, values.data(), values.size() * sizeof(T));
 }
 
 // A small labelled room: a 3 x 3 m floor (NYU40 2), a wall (1), a chair-sized box (5) and a
-// table-sized box (7), each an object; `dx` moves the furniture. Files <dir>/<name>_{vert,sem,ins}.npy.
+// table-sized box (7), each an object; `dx` moves the furniture. Files
+// <dir>/<name>_{vert,sem,ins}.npy.
 int WriteRoom(const fs::path& dir, const std::string& name, float dx) {
   std::vector<float> v;
   std::vector<std::uint32_t> sem, ins;
@@ -86,9 +78,9 @@ TEST(RealCli, ImportArraysThenEvaluateAFolderOfScenesPooled) {
   const int n1 = WriteRoom(dir, "b", 0.3f);
   for (const auto& [file, name] : {std::pair{"a", "scene9100_00"}, {"b", "scene9101_00"}}) {
     const std::string f = d + "/" + file;
-    auto [rc, out] = RunCli("real import --vertices " + f + "_vert.npy --labels " + f +
-                            "_sem.npy --instances " + f + "_ins.npy --name " + name + " --out " +
-                            d + "/scans");
+    auto [rc, out] =
+        RunCli("real import --vertices " + f + "_vert.npy --labels " + f + "_sem.npy --instances " +
+               f + "_ins.npy --name " + name + " --out " + d + "/scans");
     ASSERT_EQ(rc, 0) << out;
     EXPECT_NE(out.find("4 objects"), std::string::npos) << out;
     EXPECT_NE(out.find("CAD-class objects (instance AP ground truth): table 1, chair 1"),
@@ -99,9 +91,9 @@ TEST(RealCli, ImportArraysThenEvaluateAFolderOfScenesPooled) {
 
   // A bad array is refused with its file named.
   WriteNpy(dir / "bad_sem.npy", "<u4", {3}, std::vector<std::uint32_t>{1, 2, 3});
-  auto [rc, out] = RunCli("real import --vertices " + d + "/a_vert.npy --labels " + d +
-                          "/bad_sem.npy --instances " + d + "/a_ins.npy --name s --out " + d +
-                          "/x");
+  auto [rc, out] =
+      RunCli("real import --vertices " + d + "/a_vert.npy --labels " + d +
+             "/bad_sem.npy --instances " + d + "/a_ins.npy --name s --out " + d + "/x");
   EXPECT_NE(rc, 0);
   EXPECT_NE(out.find("bad_sem.npy"), std::string::npos) << out;
 

@@ -12,6 +12,7 @@
 #include "dimr/core/error.h"
 #include "dimr/core/labels.h"
 #include "dimr/data/scannet_io.h"
+#include "npy_bytes.h"
 
 namespace dimr::eval {
 namespace {
@@ -146,15 +147,9 @@ TEST(RealImport, BadArraysAreRefusedByName) {
 TEST(RealImport, ReadNpyReadsAFileAndNamesItInErrors) {
   const fs::path dir = fs::path(::testing::TempDir()) / "real_import_npy";
   fs::create_directories(dir);
-  // numpy.save(np.array([[1, 2, 3], [4, 5, 6]], dtype="<u4")): version 1, data at byte 128.
-  std::string header = "{'descr': '<u4', 'fortran_order': False, 'shape': (2, 3), }";
-  header.append(128 - 10 - header.size() - 1, ' ');
-  header += '\n';
-  std::string bytes("\x93NUMPY\x01\x00", 8);
-  bytes.push_back(static_cast<char>(header.size()));
-  bytes.push_back('\0');
-  bytes += header;
-  for (std::uint32_t k = 1; k <= 6; ++k) bytes.append(reinterpret_cast<const char*>(&k), 4);
+  // numpy.save(np.array([[1, 2, 3], [4, 5, 6]], dtype="<u4")).
+  const std::vector<std::uint32_t> values = {1, 2, 3, 4, 5, 6};
+  const std::string bytes = testing::NpyBytes("<u4", {2, 3}, values.data(), 24);
   const fs::path good = dir / "good.npy";
   std::ofstream(good, std::ios::binary) << bytes;
   const NpyArray a = ReadNpy(good.string());

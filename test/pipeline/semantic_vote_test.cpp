@@ -192,8 +192,8 @@ TEST(VoteSemantics, ClustersLongerThanAnyObjectAreSplitBeforeTheyVote) {
   // A third object, 3.2 m long whose shifted points are one dense run (1 cm apart): no split
   // separates it, so its mixed per-point labels stay.
   for (int i = 0; i < 17; ++i) {
-    const std::vector<float> row =
-        i % 3 == 0 ? std::vector<float>{0.0f, 0.1f, 0.1f, 0.8f} : std::vector<float>{0.0f, 0.6f, 0.3f, 0.1f};
+    const std::vector<float> row = i % 3 == 0 ? std::vector<float>{0.0f, 0.1f, 0.1f, 0.8f}
+                                              : std::vector<float>{0.0f, 0.6f, 0.3f, 0.1f};
     s.Add(Eigen::Vector3f(0.2f * i, 5, 0.4f), Eigen::Vector3f(0.01f * i, 5, 0.4f), row);
   }
   SemanticVoteConfig cfg;
