@@ -241,6 +241,11 @@ class Composer {
                       : r < 0.78 ? kTypes[2]
                       : r < 0.92 ? kTypes[3]
                                  : kTypes[4];
+    // No draw when off, so the rooms of earlier versions are unchanged.
+    if (cfg_.studio > 0 && rng_.Bernoulli(cfg_.studio)) {
+      room_.room_type = "studio";
+      target_ = std::max(target_, std::min(cfg_.max_objects, 18));
+    }
     BuildShell();
     FillFurniture();
     return std::move(room_);
@@ -955,6 +960,17 @@ class Composer {
       WallSingle(kCadCabinet);
       if (rng_.Bernoulli(0.6)) DeskGroup();
       WallSingle(kCadBookshelf);
+    } else if (type == "studio") {
+      // An apartment in one room: living, sleeping / kitchen units, storage, work or dining.
+      SofaGroup();
+      WallSingle(kCadBookshelf);
+      const int units = rng_.UniformInt(2, 4);
+      for (int k = 0; k < units; ++k) WallSingle(kCadCabinet);
+      FloorDistractor(DistractorUse::kFloorAgainstWall);
+      FloorDistractor(DistractorUse::kFloorAgainstWall);
+      if (rng_.Bernoulli(0.6)) DeskGroup();
+      if (rng_.Bernoulli(0.5)) TableWithChairs();
+      if (rng_.Bernoulli(0.3)) WallSingle(kCadBathtub);
     } else {  // bathroom
       WallSingle(kCadBathtub);
       WallSingle(kCadCabinet);
@@ -1093,6 +1109,7 @@ void RoomConfig::Validate() const {
   if (max_windows < 0 || max_windows > 10) fail("max_windows must be in [0, 10]");
   if (!(window_pane >= 0 && window_pane <= 1)) fail("window_pane must be in [0, 1]");
   if (!(door_closed >= 0 && door_closed <= 1)) fail("door_closed must be in [0, 1]");
+  if (!(studio >= 0 && studio <= 1)) fail("studio must be in [0, 1]");
   if (!(clearance >= 0 && clearance < 0.5)) fail("clearance must be in [0, 0.5)");
   if (!(size_jitter >= 0 && size_jitter < 0.5)) fail("size_jitter must be in [0, 0.5)");
 }

@@ -336,6 +336,7 @@ void WriteSynthIndex(const std::string& path, const SynthConfig& c, std::uint64_
   y << YAML::Key << "max_windows" << YAML::Value << c.room.max_windows;
   y << YAML::Key << "window_pane" << YAML::Value << c.room.window_pane;
   y << YAML::Key << "door_closed" << YAML::Value << c.room.door_closed;
+  y << YAML::Key << "studio" << YAML::Value << c.room.studio;
   y << YAML::Key << "clearance" << YAML::Value << c.room.clearance;
   y << YAML::Key << "size_jitter" << YAML::Value << c.room.size_jitter;
   y << YAML::EndMap;

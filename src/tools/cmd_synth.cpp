@@ -52,6 +52,7 @@ struct SynthOptions {
   double real_furniture = 0.0;  // fraction of CAD objects / distractors from the import
   std::string real_furniture_dir = "data/sh3d";
   double window_pane = 0.0;   // RoomConfig::window_pane
+  double studio = 0.0;        // RoomConfig::studio
   double door_closed = 0.35;  // RoomConfig::door_closed
   bool quiet = false;
   bool render = false;
@@ -169,6 +170,7 @@ RunResult RunSynth(const SynthOptions& o) {
   config.scanner.density = dimr::data::ScanDensityFromName(o.density);
   config.room.window_pane = o.window_pane;
   config.room.door_closed = o.door_closed;
+  config.room.studio = o.studio;
   config.scanner.keep_frames = o.bags;
   config.scanner.threads = 1;  // parallel over scenes instead
   config.scanner.drift_translation = o.drift;
@@ -324,6 +326,11 @@ void AddCommon(CLI::App& app, SynthOptions* o) {
                  "Probability that a window has a pane the scanner sees (glass or closed blinds "
                  "set back 1-7 cm from the wall face, labelled window; 0 = open frames, the rooms "
                  "of earlier versions)")
+      ->capture_default_str();
+  app.add_option("--studio", o->studio,
+                 "Probability that a room is a studio apartment: sofa group, floor units (beds, "
+                 "kitchen units with real furniture), a run of cabinets, desk or dining table, "
+                 "bookshelf in one open room of >= 18 objects (0 = the rooms of earlier versions)")
       ->capture_default_str();
   app.add_option("--door-closed", o->door_closed,
                  "Probability that a door's leaf is closed, flush in its frame (else open by "

@@ -279,6 +279,40 @@ TEST(RoomDoorTest, DoorClosedClosesTheLeaves) {
   EXPECT_GE(doors_open, 12);
 }
 
+// RoomConfig::studio: with probability 1 every room is a studio apartment - a sofa group and two
+// or more cabinets in each, bookshelves in most (a wall may be full), more objects in all than
+// the plain rooms of the same seeds; with 0 the rooms are the default ones (no draw).
+TEST(RoomStudioTest, StudiosHoldTheZonesOfAFlatInOneRoom) {
+  RoomConfig studio;
+  studio.studio = 1.0;
+  std::size_t studio_objects = 0, plain_objects = 0;
+  int with_bookshelf = 0;
+  for (std::uint64_t seed = 0; seed < 8; ++seed) {
+    const Room s = ComposeRoom(studio, seed);
+    EXPECT_EQ(s.room_type, "studio") << "seed " << seed;
+    int sofas = 0, cabinets = 0, bookshelves = 0;
+    for (const auto& o : s.objects) {
+      sofas += o.cad_class == kCadSofa;
+      cabinets += o.cad_class == kCadCabinet;
+      bookshelves += o.cad_class == kCadBookshelf;
+    }
+    EXPECT_GE(sofas, 1) << "seed " << seed;
+    EXPECT_GE(cabinets, 2) << "seed " << seed;
+    with_bookshelf += bookshelves > 0;
+    const Room plain = ComposeRoom(RoomConfig(), seed);
+    EXPECT_NE(plain.room_type, "studio");
+    studio_objects += s.objects.size();
+    plain_objects += plain.objects.size();
+    RoomConfig off;
+    off.studio = 0.0;
+    const Room same = ComposeRoom(off, seed);
+    ASSERT_EQ(same.objects.size(), plain.objects.size());
+    EXPECT_EQ(same.room_type, plain.room_type);
+  }
+  EXPECT_GE(with_bookshelf, 6);
+  EXPECT_GT(studio_objects, plain_objects);
+}
+
 // Validate() throws InvalidArgument whose message names `field`.
 void ExpectRejectedNaming(const RoomConfig& c, const std::string& field) {
   try {
@@ -303,6 +337,9 @@ TEST(RoomConfigTest, RejectsBadValues) {
   c = RoomConfig();
   c.door_closed = -0.1;
   ExpectRejectedNaming(c, "door_closed");
+  c = RoomConfig();
+  c.studio = 2;
+  ExpectRejectedNaming(c, "studio");
   EXPECT_THROW(CadSizeRange(8, nullptr, nullptr), InvalidArgument);
 }
 

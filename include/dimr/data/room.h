@@ -71,7 +71,7 @@ struct Room {
   std::vector<Eigen::Vector2d> outline;  // interior floor polygon, counter-clockwise
   double height = 2.7;                   // floor to ceiling (metres)
   double wall_thickness = 0.12;
-  std::string room_type;              // "living", "office", "dining", "bedroom", "bathroom"
+  std::string room_type;  // "living", "office", "dining", "bedroom", "bathroom", "studio"
   std::vector<PlacedObject> objects;  // walls, floor, ceiling, doors, windows, furniture
 
   // True if the 2-D point lies inside the interior polygon.
@@ -98,6 +98,12 @@ struct RoomConfig {
   // Probability that a door's leaf is closed (flush in its frame); otherwise it stands open by
   // 0.4-1.6 rad (one more draw). The default keeps the rooms of earlier versions.
   double door_closed = 0.35;
+  // Probability that a room is a studio apartment (room type "studio"): the zones of a flat in
+  // one open room - a sofa group, floor units against the walls (beds, kitchen units,
+  // appliances when real furniture is on), a run of cabinets, a desk or a dining table, a
+  // bookshelf, sometimes a bathtub - with at least 18 objects (capped by max_objects), like
+  // ScanNet's apartment scans. 0 (the default) draws nothing: earlier rooms are unchanged.
+  double studio = 0.0;
   bool ceiling = true;        // part of the ray-cast scene (occluder), never in the output
   double clearance = 0.03;    // minimum gap between the boxes of two objects (metres)
   double size_jitter = 0.12;  // anisotropic per-axis scale jitter around the model's nominal size
