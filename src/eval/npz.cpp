@@ -163,17 +163,24 @@ NpyArray ParseNpy(const std::uint8_t* data, std::size_t size, const std::string&
   return a;
 }
 
-NpyArray ReadNpy(const std::string& path) {
+namespace {
+
+// The whole file; throws ParseError naming it when it cannot be opened.
+std::string ReadFileBytes(const std::string& path) {
   std::ifstream f(path, std::ios::binary);
   if (!f) throw ParseError(path, "cannot open file");
-  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  return std::string((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+}
+
+}  // namespace
+
+NpyArray ReadNpy(const std::string& path) {
+  const std::string bytes = ReadFileBytes(path);
   return ParseNpy(reinterpret_cast<const std::uint8_t*>(bytes.data()), bytes.size(), path);
 }
 
 std::map<std::string, NpyArray> ReadNpz(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw ParseError(path, "cannot open file");
-  const std::string bytes((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  const std::string bytes = ReadFileBytes(path);
   const auto* b = reinterpret_cast<const std::uint8_t*>(bytes.data());
   const std::size_t n = bytes.size();
   // End of central directory: the last "PK\5\6" within the final 64 KiB + 22 bytes.

@@ -11,15 +11,20 @@
 namespace dimr::eval {
 namespace {
 
+// "7 x 6": an array's shape for messages.
+std::string ShapeText(const NpyArray& a) {
+  std::string shape;
+  for (auto d : a.shape) shape += (shape.empty() ? "" : " x ") + std::to_string(d);
+  return shape;
+}
+
 // Per-vertex integers of a 1-D (or N x 1) array, each within [lo, hi].
 std::vector<int> IntegerColumn(const NpyArray& a, std::int64_t n, int lo, int hi,
                                const std::string& source, const char* what) {
   const bool column = a.shape.size() == 1 || (a.shape.size() == 2 && a.shape[1] == 1);
   if (!column || a.shape[0] != n) {
-    std::string shape;
-    for (auto d : a.shape) shape += (shape.empty() ? "" : " x ") + std::to_string(d);
     throw ParseError(source, std::string("expected ") + std::to_string(n) + " " + what +
-                                 " (one per vertex), got shape [" + shape + "]");
+                                 " (one per vertex), got shape [" + ShapeText(a) + "]");
   }
   std::vector<int> out(static_cast<std::size_t>(n));
   for (std::int64_t i = 0; i < n; ++i) {
@@ -55,11 +60,9 @@ data::SynthScene SceneFromLabelledVertices(const std::string& name, const NpyArr
                                            const NpyArray& nyu40, const NpyArray& instance,
                                            const LabelledVertexSources& sources) {
   if (vertices.shape.size() != 2 || (vertices.shape[1] != 3 && vertices.shape[1] < 6)) {
-    std::string shape;
-    for (auto d : vertices.shape) shape += (shape.empty() ? "" : " x ") + std::to_string(d);
-    throw ParseError(
-        sources.vertices,
-        "expected N x 3 (x y z) or N x >= 6 (x y z r g b) vertices, got shape [" + shape + "]");
+    throw ParseError(sources.vertices,
+                     "expected N x 3 (x y z) or N x >= 6 (x y z r g b) vertices, got shape [" +
+                         ShapeText(vertices) + "]");
   }
   const std::int64_t n = vertices.shape[0];
   const std::int64_t cols = vertices.shape[1];

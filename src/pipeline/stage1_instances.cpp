@@ -270,24 +270,26 @@ std::vector<int> VoteSemantics(const std::vector<Eigen::Vector3f>& points,
   };
   std::vector<std::vector<int>> clusters;
   {
-    // Oversized clusters (max_extent) split at half the radius, up to three times.
-    std::vector<std::pair<std::vector<int>, double>> todo;
-    for (auto& c : cluster_at(shifted, thing_label, config.radius)) {
-      todo.emplace_back(std::move(c), config.radius);
-    }
+    // Oversized clusters (max_extent) split at half the radius, up to three times; a part
+    // still too long after that keeps its per-point labels.
+    constexpr int kMaxSplits = 3;
+    std::vector<std::pair<std::vector<int>, int>> todo;  // cluster, splits so far
+    for (auto& c : cluster_at(shifted, thing_label, config.radius))
+      todo.emplace_back(std::move(c), 0);
     while (!todo.empty()) {
-      auto [cluster, radius] = std::move(todo.back());
+      auto [cluster, splits] = std::move(todo.back());
       todo.pop_back();
       if (config.max_extent <= 0.0 || FootprintLongSide(points, cluster) <= config.max_extent) {
         clusters.push_back(std::move(cluster));
         continue;
       }
-      if (radius < config.radius * 0.2) continue;  // split three times: per-point labels stay
+      if (splits == kMaxSplits) continue;
+      const double radius = config.radius / static_cast<double>(2 << splits);
       std::vector<Eigen::Vector3f> sub(cluster.size());
       for (std::size_t k = 0; k < cluster.size(); ++k) sub[k] = shifted[cluster[k]];
-      for (auto& part : cluster_at(sub, std::vector<int>(cluster.size(), 0), 0.5 * radius)) {
+      for (auto& part : cluster_at(sub, std::vector<int>(cluster.size(), 0), radius)) {
         for (int& i : part) i = cluster[i];
-        todo.emplace_back(std::move(part), 0.5 * radius);
+        todo.emplace_back(std::move(part), splits + 1);
       }
     }
   }

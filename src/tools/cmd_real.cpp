@@ -115,12 +115,13 @@ struct Scan2CadObjects {
   std::string excluded;  // the excluded class names, comma-separated
 };
 
-Scan2CadObjects ReadScan2CadObjects(const std::string& path, const StatsCloud& c,
+// `all` = data::ReadScan2CadAnnotations(path) (path names the file in errors).
+Scan2CadObjects ReadScan2CadObjects(const std::vector<data::Scan2CadScene>& all,
+                                    const std::string& path, const StatsCloud& c,
                                     const std::vector<int>& gt25,
                                     const std::vector<std::string>& box_exclude_names,
                                     double margin) {
   Scan2CadObjects o;
-  const std::vector<data::Scan2CadScene> all = data::ReadScan2CadAnnotations(path);
   const data::Scan2CadScene* scene = nullptr;
   for (const auto& s : all)
     if (s.id_scan == c.name) scene = &s;
@@ -215,20 +216,23 @@ struct RealEvalPool {
 };
 
 // Does the Scan2CAD annotation have an entry for `scene`?
-bool HasScan2CadEntry(const std::string& path, const std::string& scene) {
-  for (const auto& s : data::ReadScan2CadAnnotations(path)) {
+bool HasScan2CadEntry(const std::vector<data::Scan2CadScene>& annotations,
+                      const std::string& scene) {
+  for (const auto& s : annotations) {
     if (s.id_scan == scene) return true;
   }
   return false;
 }
 
 // One scene: stage 1, its reports (printed), pictures; returns its JSON and adds to `pool`.
-// `several`: part of a multi-scene run (a --scan2cad file then applies to the scenes it names
-// only; the others are scored on their own object annotation, if any).
+// `annotations`: the --scan2cad file's entries (read once per run). `several`: part of a
+// multi-scene run (the --scan2cad file then applies to the scenes it names only; the others
+// are scored on their own object annotation, if any).
 json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
                        const pipeline::Stage1Segmenter& seg,
                        const pipeline::Stage1InferenceConfig& inf, const std::string& source,
-                       bool several, RealEvalPool* pool) {
+                       const std::vector<data::Scan2CadScene>& annotations, bool several,
+                       RealEvalPool* pool) {
   const StatsCloud c = ReadStatsCloud(path);
   if (c.nyu40.empty())
     throw ParseError(path,
@@ -358,9 +362,11 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
   // scene's own object annotation (aggregation + segments, e.g. a `dimr real import`ed scene).
   std::vector<std::string> ids;
   std::string gt_title, gt_what;
-  if (!a.scan2cad.empty() && (!several || HasScan2CadEntry(a.scan2cad, c.name))) {
+  const bool from_scan2cad =
+      !a.scan2cad.empty() && (!several || HasScan2CadEntry(annotations, c.name));
+  if (from_scan2cad) {
     const Scan2CadObjects objects =
-        ReadScan2CadObjects(a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
+        ReadScan2CadObjects(annotations, a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
     gt_sets = objects.points;
     gt_class = objects.cad_class;
     gt_boxes = objects.boxes;
@@ -500,8 +506,8 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
           if (matches[k].best_index == static_cast<int>(p)) colour = static_cast<int>(k);
         for (int q : preds[p].points) pi.point_colors[q] = PaletteColour(colour);
       }
-      gi.title = a.scan2cad.empty() ? "annotated objects (CAD classes)"
-                                    : "Scan2CAD objects (points in the aligned boxes)";
+      gi.title = from_scan2cad ? "Scan2CAD objects (points in the aligned boxes)"
+                               : "annotated objects (CAD classes)";
       pi.title = "predicted instances";
       const std::string ins = (fs::path(a.render_dir) / (c.name + "_instances.png")).string();
       RenderScenePanels({gi, pi}, 720, 560, ins);
@@ -517,16 +523,19 @@ void RunRealEval(const RealEvalArgs& a) {
   std::string source;
   const pipeline::Stage1InferenceConfig inf = ResolveInference(a.inference, &source);
   const pipeline::Stage1Segmenter seg = pipeline::Stage1Segmenter::Load(a.inference.model, inf);
+  const std::vector<data::Scan2CadScene> annotations =
+      a.scan2cad.empty() ? std::vector<data::Scan2CadScene>()
+                         : data::ReadScan2CadAnnotations(a.scan2cad);
   RealEvalPool pool;
   json out;
   if (paths.size() == 1) {
-    out = EvaluateRealScene(a, paths[0], seg, inf, source, false, &pool);
+    out = EvaluateRealScene(a, paths[0], seg, inf, source, annotations, false, &pool);
   } else {
     // Every scene, then the pooled numbers: IoU over all scenes' points, the instance AP over
     // all their objects (the form of issue 22's hidden-room acceptance), objects found.
     for (const std::string& p : paths) {
       std::printf("\n### %s\n\n", fs::path(p).filename().string().c_str());
-      out["scenes"].push_back(EvaluateRealScene(a, p, seg, inf, source, true, &pool));
+      out["scenes"].push_back(EvaluateRealScene(a, p, seg, inf, source, annotations, true, &pool));
     }
     std::printf(
         "\n### all %zu scenes (pooled)\n\n| scene | points | RFS-25 mIoU | DODA-11 mIoU | "
@@ -737,7 +746,8 @@ void RunRealExportGt(const RealExportGtArgs& a) {
   if (!a.box_exclude.empty() && c.semantic.empty()) {
     throw ParseError(a.scene, "--box-exclude needs the scan's labels (labels.ply)");
   }
-  const Scan2CadObjects o = ReadScan2CadObjects(a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
+  const Scan2CadObjects o = ReadScan2CadObjects(data::ReadScan2CadAnnotations(a.scan2cad),
+                                                a.scan2cad, c, gt25, a.box_exclude, a.box_margin);
   if (o.points.empty()) throw ParseError(a.scan2cad, "no aligned model of a CAD class");
   const fs::path out(a.out);
   std::error_code ec;
