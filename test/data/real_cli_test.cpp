@@ -123,6 +123,49 @@ TEST(RealCli, ImportArraysThenEvaluateAFolderOfScenesPooled) {
   EXPECT_TRUE(j["pooled"].contains("instance_ap50_cad"));
   // The flat floor of a 3 x 3 m room is labelled floor by any working stage 1.
   EXPECT_GT(j["pooled"]["semantic_doda11"]["classes"]["floor"]["iou"].get<double>(), 0.5);
+
+  // Self-training data: the same two rooms as unlabelled scans -> a stage-1 training cache in
+  // which each predicted class keeps its most confident 30 % (class-balanced).
+  std::tie(rc, out) =
+      RunCli("real pseudo-label --model " + model + " --preset fast --scene " + d +
+             "/scans --keep 0.3 --out " + d + "/pseudo.bin --json " + d + "/pseudo.json");
+  ASSERT_EQ(rc, 0) << out;
+  EXPECT_NE(out.find("against the scans' own labels (diagnostic"), std::string::npos) << out;
+  const auto p = nlohmann::json::parse(ReadFileText(dir / "pseudo.json"));
+  ASSERT_EQ(p["scenes"].size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    const auto& s = p["scenes"][k];
+    // Denser than the training rooms: the network saw (and the sample holds) voxel means.
+    EXPECT_LT(s["points"].get<int>(), k == 0 ? n0 : n1);
+    EXPECT_GT(s["points"].get<int>(), (k == 0 ? n0 : n1) / 4);
+    EXPECT_NE(s["note"].get<std::string>().find("voxel means"), std::string::npos);
+    long long kept = 0, predicted = 0;
+    for (const auto& [name, c] : s["classes"].items()) {
+      const long long pr = c["predicted"].get<long long>(), ke = c["kept"].get<long long>();
+      EXPECT_EQ(ke, (3 * pr + 9) / 10) << name;  // ceil(0.3 x predicted)
+      kept += ke;
+      predicted += pr;
+    }
+    EXPECT_EQ(predicted, s["points"].get<long long>());  // every point has a class (no ceiling)
+    EXPECT_EQ(s["labelled"].get<long long>(), kept);
+    EXPECT_GT(s["classes"]["floor"]["kept"].get<long long>(), 0);
+  }
+  // The cache is a stage-1 training set: two scenes, about 30 % of their points labelled.
+  std::tie(rc, out) = RunCli("stage1 inspect " + d + "/pseudo.bin --json " + d + "/inspect.json");
+  ASSERT_EQ(rc, 0) << out;
+  const auto q = nlohmann::json::parse(ReadFileText(dir / "inspect.json"))["splits"]["all"];
+  EXPECT_EQ(q["scenes"].get<int>(), 2) << q.dump();
+  const long long points =
+      p["scenes"][0]["points"].get<long long>() + p["scenes"][1]["points"].get<long long>();
+  EXPECT_EQ(q["points"].get<long long>(), points);
+  EXPECT_EQ(q["ignored_points"].get<long long>(), points -
+                                                      p["scenes"][0]["labelled"].get<long long>() -
+                                                      p["scenes"][1]["labelled"].get<long long>());
+  // A bad selection is refused by name.
+  std::tie(rc, out) = RunCli("real pseudo-label --model " + model + " --scene " + d +
+                             "/scans --keep 1.5 --out " + d + "/x.bin");
+  EXPECT_NE(rc, 0);
+  EXPECT_NE(out.find("keep_fraction"), std::string::npos) << out;
 }
 #endif
 
