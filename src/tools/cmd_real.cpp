@@ -39,6 +39,7 @@
 #include "dimr/pipeline/voxel_downsample.h"
 #include "tools/bsp_options.h"
 #include "tools/command_registry.h"
+#include "tools/real_scan.h"
 #include "tools/render.h"
 #include "tools/stage1_inference_args.h"
 #include "tools/stats_inputs.h"
@@ -241,49 +242,21 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
   if (c.colors.empty() && !a.grey)
     throw ParseError(path, "the cloud has no colours (use --grey for a geometry-only run)");
 
-  pipeline::PointCloudInput scan;
-  scan.name = c.name;
-  for (const auto& p : c.points) scan.points.push_back(p.cast<float>());
-  for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
-  if (a.grey) scan.colors.assign(scan.points.size(), Eigen::Vector3f::Constant(0.5f));
-  // As the product does: a detected ceiling leaves before stage 1 (its points: no class).
-  const std::size_t scan_points = scan.points.size();
-  pipeline::CeilingRemoval cut =
-      pipeline::RemoveCeiling(std::move(scan), CeilingFromFlag(a.ceiling));
-  scan = std::move(cut.cloud);  // the scan itself when no ceiling is found
-  // The product's density rule (dimr reconstruct --input-voxel, the node's input_voxel_size):
-  // auto = voxel means at the training density when the scan is denser than it.
-  double voxel = 0.0;
-  pipeline::VoxelDownsample reduced;
-  if (a.voxel == "auto") {
-    pipeline::DensityNormalisation d = pipeline::NormaliseDensity(
-        scan, pipeline::kTrainingVoxelSize, pipeline::kDenserThanTrainingPointsPerCell);
-    if (d.applied) {
-      voxel = pipeline::kTrainingVoxelSize;
-      reduced.cloud = std::move(d.cloud);
-      reduced.cell_of_point = std::move(d.cell_of_point);
-    }
-  } else {
-    char* end = nullptr;
-    voxel = std::strtod(a.voxel.c_str(), &end);
-    if (a.voxel.empty() || *end != '\0' || !std::isfinite(voxel) || voxel < 0 || voxel > 1) {
-      throw InvalidArgument("--voxel: expected auto, 0 or an edge in (0, 1] m, got '" + a.voxel +
-                            "'");
-    }
-    if (voxel > 0) reduced = pipeline::VoxelMeanDownsample(scan, voxel);
-  }
-  const pipeline::PointCloudInput& in = voxel > 0 ? reduced.cloud : scan;
+  const RealScanInput prepared = PrepareRealScan(c, CeilingFromFlag(a.ceiling), a.voxel, a.grey);
+  const pipeline::CeilingRemoval& cut = prepared.cut;
+  const double voxel = prepared.voxel;
+  const pipeline::PointCloudInput& in = prepared.network();
   pipeline::Stage1Result r = seg.Segment(in);
   if (voxel > 0) {
     // Back to every scan point: the label of its cell, the instances of their cells' points.
-    r.semantic = pipeline::ExpandCellLabels(r.semantic, reduced.cell_of_point);
-    r.cad_label = pipeline::ExpandCellLabels(r.cad_label, reduced.cell_of_point);
-    for (auto& inst : r.instances)
-      inst.points = pipeline::ExpandCellPoints(inst.points, reduced.cell_of_point);
+    const std::vector<int>& cells = prepared.reduced.cell_of_point;
+    r.semantic = pipeline::ExpandCellLabels(r.semantic, cells);
+    r.cad_label = pipeline::ExpandCellLabels(r.cad_label, cells);
+    for (auto& inst : r.instances) inst.points = pipeline::ExpandCellPoints(inst.points, cells);
   }
   if (cut.found) {
-    r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, scan_points, -1);
-    r.cad_label = pipeline::ExpandKeptLabels(r.cad_label, cut.kept, scan_points, -1);
+    r.semantic = pipeline::ExpandKeptLabels(r.semantic, cut.kept, prepared.scan_points, -1);
+    r.cad_label = pipeline::ExpandKeptLabels(r.cad_label, cut.kept, prepared.scan_points, -1);
     for (auto& inst : r.instances) inst.points = pipeline::ExpandKeptPoints(inst.points, cut.kept);
   }
   std::printf("ceiling: %s\n", cut.found ? ("removed at z = " + Num(cut.ceiling_z, 2) + " m (" +

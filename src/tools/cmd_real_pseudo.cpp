@@ -20,8 +20,8 @@
 #include "dimr/pipeline/point_cloud_input.h"
 #include "dimr/pipeline/pseudo_label.h"
 #include "dimr/pipeline/stage1_segmenter.h"
-#include "dimr/pipeline/voxel_downsample.h"
 #include "tools/command_registry.h"
+#include "tools/real_scan.h"
 #include "tools/stage1_inference_args.h"
 #include "tools/stats_inputs.h"
 
@@ -37,43 +37,6 @@ struct PseudoArgs {
   std::string ceiling = "auto";
   pipeline::PseudoLabelConfig config;
 };
-
-// The cloud the network sees for scan `path` (as `dimr real eval` and the product prepare it:
-// a detected ceiling removed, voxel means at the training density when the scan is denser).
-// `source` (out): per network point, the scan points it stands for.
-pipeline::PointCloudInput NetworkCloud(const StatsCloud& c, const pipeline::CeilingConfig& ceiling,
-                                       bool need_colours, std::string* note,
-                                       std::vector<std::vector<int>>* source) {
-  pipeline::PointCloudInput scan;
-  scan.name = c.name;
-  for (const auto& p : c.points) scan.points.push_back(p.cast<float>());
-  for (const auto& col : c.colors) scan.colors.push_back(col.cast<float>() / 255.0f);
-  if (need_colours && scan.colors.empty())
-    throw ParseError(c.name, "the scan has no colours and the model needs them");
-  const std::size_t before = scan.points.size();
-  pipeline::CeilingRemoval cut = pipeline::RemoveCeiling(std::move(scan), ceiling);
-  scan = std::move(cut.cloud);
-  *note = cut.found ? "ceiling removed (" + std::to_string(before - scan.points.size()) + " points)"
-                    : "no ceiling";
-  std::vector<int> kept = cut.kept;
-  if (!cut.found) {
-    kept.resize(scan.points.size());
-    for (std::size_t i = 0; i < kept.size(); ++i) kept[i] = static_cast<int>(i);
-  }
-  pipeline::DensityNormalisation d = pipeline::NormaliseDensity(
-      scan, pipeline::kTrainingVoxelSize, pipeline::kDenserThanTrainingPointsPerCell);
-  if (d.applied) {
-    *note += ", voxel means at the training density (" + std::to_string(d.cloud.points.size()) +
-             " of " + std::to_string(scan.points.size()) + " points)";
-    source->assign(d.cloud.points.size(), {});
-    for (std::size_t i = 0; i < kept.size(); ++i)
-      (*source)[static_cast<std::size_t>(d.cell_of_point[i])].push_back(kept[i]);
-    return std::move(d.cloud);
-  }
-  source->assign(kept.size(), {});
-  for (std::size_t i = 0; i < kept.size(); ++i) (*source)[i] = {kept[i]};
-  return scan;
-}
 
 void RunPseudo(const PseudoArgs& a) {
   a.config.Validate();
@@ -99,9 +62,18 @@ void RunPseudo(const PseudoArgs& a) {
   const auto& names = pipeline::Stage1RfsClassNames();
   for (const std::string& path : paths) {
     const StatsCloud c = ReadStatsCloud(path);
-    std::string note;
-    std::vector<std::vector<int>> source;
-    pipeline::PointCloudInput cloud = NetworkCloud(c, ceiling, seg.uses_color(), &note, &source);
+    if (seg.uses_color() && c.colors.empty())
+      throw ParseError(c.name, "the scan has no colours and the model needs them");
+    const RealScanInput prepared = PrepareRealScan(c, ceiling, "auto");
+    std::string note = prepared.cut.found
+                           ? "ceiling removed (" + std::to_string(prepared.cut.removed) + " points)"
+                           : "no ceiling";
+    if (prepared.voxel > 0)
+      note += ", voxel means at the training density (" +
+              std::to_string(prepared.reduced.cloud.points.size()) + " of " +
+              std::to_string(prepared.cut.cloud.points.size()) + " points)";
+    pipeline::PointCloudInput cloud = prepared.network();
+    const std::vector<std::vector<int>> source = prepared.ScanPointsOfNetworkPoints();
     const pipeline::Stage1Result r = seg.Segment(cloud);
     // The colours the network saw (the card's per-scene standardisation).
     if (seg.uses_color() && inf.colour_norm)
