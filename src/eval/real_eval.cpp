@@ -172,6 +172,14 @@ std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_po
       if (iou > m.best_iou_any) {
         m.best_iou_any = iou;
         m.best_any_class = preds[p].cad_class;
+        const std::unordered_set<int> pred_set(preds[p].points.begin(), preds[p].points.end());
+        std::size_t inter = 0;
+        for (int x : std::unordered_set<int>(gt_points[g].begin(), gt_points[g].end())) {
+          inter += pred_set.count(x);
+        }
+        m.best_any_recall = m.gt_points > 0 ? static_cast<double>(inter) / m.gt_points : 0.0;
+        m.best_any_precision =
+            pred_set.empty() ? 0.0 : static_cast<double>(inter) / pred_set.size();
       }
       if (preds[p].cad_class == m.cad_class && iou > m.best_iou) {
         m.best_iou = iou;

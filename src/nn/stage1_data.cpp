@@ -762,7 +762,12 @@ const config::Fields<RealismAugment>& RealismFields() {
               1.0)
           .Number(
               "instance_mix_count", [](R& c) -> int& { return c.instance_mix_count; }, "",
-              "instances pasted per mixed scene (at most)", 0, 64);
+              "instances pasted per mixed scene (at most)", 0, 64)
+          .Number(
+              "cuboid_mix", [](R& c) -> double& { return c.cuboid_mix; }, "",
+              "probability that a scene takes 1-3 of its x-y quadrants from another scene of the "
+              "batch",
+              0.0, 1.0);
   return fields;
 }
 }  // namespace
@@ -845,6 +850,72 @@ Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int 
       if (!out.weight.empty()) out.weight.push_back(1.0f);
     }
   }
+  return out;
+}
+
+Stage1Sample MixCuboids(const Stage1Sample& dst, const Stage1Sample& src, std::mt19937_64* rng) {
+  dst.Validate();
+  src.Validate();
+  if (rng == nullptr) throw InvalidArgument("MixCuboids: null random generator");
+  if (dst.points.empty() || src.points.empty()) return dst;
+  // Split points (x, y) in the middle of each scene's footprint.
+  const auto split = [rng](const std::vector<Eigen::Vector3f>& pts) {
+    Eigen::Vector2f lo = pts[0].head<2>(), hi = pts[0].head<2>();
+    for (const auto& p : pts) {
+      lo = lo.cwiseMin(p.head<2>());
+      hi = hi.cwiseMax(p.head<2>());
+    }
+    Eigen::Vector2f c;
+    for (int a = 0; a < 2; ++a) {
+      c[a] = lo[a] + static_cast<float>(0.3 + 0.4 * Uniform01(rng)) * (hi[a] - lo[a]);
+    }
+    return c;
+  };
+  const Eigen::Vector2f cd = split(dst.points), cs = split(src.points);
+  // Which quadrants come from src: 1..3 of the 4.
+  int from_src = 0;
+  while (from_src == 0 || from_src == 15) {
+    from_src = 0;
+    for (int q = 0; q < 4; ++q) from_src |= (Uniform01(rng) < 0.5 ? 1 : 0) << q;
+  }
+  const auto quadrant = [](const Eigen::Vector3f& p, const Eigen::Vector2f& c) {
+    return (p.x() >= c.x() ? 1 : 0) + (p.y() >= c.y() ? 2 : 0);
+  };
+  const Eigen::Vector3f shift(cd.x() - cs.x(), cd.y() - cs.y(),
+                              EstimateNetworkFrame(dst.points).floor_z -
+                                  EstimateNetworkFrame(src.points).floor_z);
+  Stage1Sample out;
+  out.name = dst.name;
+  const bool colours = !dst.colors.empty();
+  const bool weights = !dst.weight.empty() || !src.weight.empty();
+  std::vector<int> dst_map(dst.instances.size(), -1), src_map(src.instances.size(), -1);
+  const auto take = [&](const Stage1Sample& s, std::size_t i, const Eigen::Vector3f& offset,
+                        std::vector<int>* map) {
+    out.points.push_back(s.points[i] + offset);
+    if (colours) {
+      out.colors.push_back(s.colors.empty() ? Eigen::Vector3f::Constant(0.5f) : s.colors[i]);
+    }
+    out.semantic.push_back(s.semantic[i]);
+    int inst = s.instance[i];
+    if (inst >= 0) {
+      if ((*map)[inst] < 0) {
+        (*map)[inst] = static_cast<int>(out.instances.size());
+        out.instances.push_back(s.instances[inst]);
+      }
+      inst = (*map)[inst];
+    }
+    out.instance.push_back(inst);
+    if (weights) out.weight.push_back(s.weight.empty() ? 1.0f : s.weight[i]);
+  };
+  for (std::size_t i = 0; i < dst.points.size(); ++i) {
+    if (!((from_src >> quadrant(dst.points[i], cd)) & 1)) {
+      take(dst, i, Eigen::Vector3f::Zero(), &dst_map);
+    }
+  }
+  for (std::size_t i = 0; i < src.points.size(); ++i) {
+    if ((from_src >> quadrant(src.points[i], cs)) & 1) take(src, i, shift, &src_map);
+  }
+  if (out.points.empty()) return dst;  // both kept sides empty (degenerate scenes)
   return out;
 }
 
@@ -1090,7 +1161,18 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
       throw InvalidArgument("MakeStage1Batch: use_rgb but " + SampleLabel(*src) +
                             " has no colours");
     }
-    // Instance mixing, on its own stream (without it the batches are bit for bit as before).
+    // Cuboid mixing, then instance mixing, each on its own stream (without them the batches
+    // are bit for bit as before).
+    Stage1Sample cuboids;
+    if (aug && augment->realism.cuboid_mix > 0 && batch.batch_size >= 2) {
+      std::mt19937_64 cub_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0xc0b1ull));
+      const Stage1Sample* other = samples[(b + 1) % batch.batch_size];
+      if (Uniform01(&cub_rng) < augment->realism.cuboid_mix) {
+        cuboids = MixCuboids(*src, *other, &cub_rng);
+        cuboids.name = src->name;
+        src = &cuboids;
+      }
+    }
     Stage1Sample mixed;
     if (aug && augment->realism.instance_mix > 0 && batch.batch_size >= 2) {
       std::mt19937_64 mix_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0x3171ull));

@@ -360,7 +360,8 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
     std::printf(
         "\n#### %s\n\n| # | class "
         "| CAD / object | GT points | best IoU, same class | best IoU, any class (its class) | "
-        "found | GT labels | predicted as |\n|---|---|---|---|---|---|---|---|---|\n",
+        "its recall / precision | found | GT labels | predicted as |\n"
+        "|---|---|---|---|---|---|---|---|---|---|\n",
         gt_title.c_str());
     // The two largest classes among an object's box points, by the scan's labels and by the
     // prediction: says whether a miss is the box (floor / other objects inside it), the
@@ -386,10 +387,11 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
     for (std::size_t k = 0; k < matches.size(); ++k) {
       const auto& m = matches[k];
       found += m.found;
-      std::printf("| %zu | %s | %.8s | %d | %s | %s (%s) | %s | %s | %s |\n", k,
+      std::printf("| %zu | %s | %.8s | %d | %s | %s (%s) | %s / %s | %s | %s | %s |\n", k,
                   names8[m.cad_class].c_str(), ids[k].c_str(), m.gt_points, Num(m.best_iou).c_str(),
                   Num(m.best_iou_any).c_str(),
                   m.best_any_class >= 0 ? names8[m.best_any_class].c_str() : "-",
+                  Num(m.best_any_recall, 2).c_str(), Num(m.best_any_precision, 2).c_str(),
                   m.found ? "yes" : "no", top_classes(gt_sets[k], gt25).c_str(),
                   top_classes(gt_sets[k], r.semantic).c_str());
       j["objects"].push_back({{"class", names8[m.cad_class]},
@@ -397,6 +399,8 @@ json EvaluateRealScene(const RealEvalArgs& a, const std::string& path,
                               {"gt_points", m.gt_points},
                               {"best_iou", m.best_iou},
                               {"best_iou_any", m.best_iou_any},
+                              {"best_any_recall", m.best_any_recall},
+                              {"best_any_precision", m.best_any_precision},
                               {"found", m.found}});
     }
     std::printf(

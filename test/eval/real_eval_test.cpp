@@ -158,9 +158,21 @@ TEST(RealEval, PointIouAndObjectMatching) {
   EXPECT_DOUBLE_EQ(m[0].best_iou, 0.6);
   EXPECT_DOUBLE_EQ(m[0].best_iou_any, 0.9);
   EXPECT_EQ(m[0].best_any_class, labels::kCadTable);
+  // That table prediction holds 9 of the chair's 10 points and nothing else.
+  EXPECT_DOUBLE_EQ(m[0].best_any_recall, 0.9);
+  EXPECT_DOUBLE_EQ(m[0].best_any_precision, 1.0);
   EXPECT_FALSE(m[1].found);
+  EXPECT_DOUBLE_EQ(m[1].best_any_recall, 0.4);
+  EXPECT_DOUBLE_EQ(m[1].best_any_precision, 1.0);
   EXPECT_DOUBLE_EQ(m[1].best_iou, 0.4);
   EXPECT_EQ(m[1].gt_points, 10);
+  // A prediction merged with its surroundings: all 10 points of GT 1 among 25 -> precision 0.4.
+  std::vector<int> merged;
+  for (int i = 15; i < 40; ++i) merged.push_back(i);
+  const auto mm = MatchObjects({g1}, {labels::kCadTable}, {{labels::kCadTable, 0.5, merged}});
+  EXPECT_DOUBLE_EQ(mm[0].best_iou, 0.4);
+  EXPECT_DOUBLE_EQ(mm[0].best_any_recall, 1.0);
+  EXPECT_DOUBLE_EQ(mm[0].best_any_precision, 0.4);
   EXPECT_THROW(MatchObjects({g0}, {}, preds), InvalidArgument);
 }
 

@@ -311,5 +311,156 @@ TEST(Stage1Realism, InstanceMixInBatchesOnItsOwnStream) {
   EXPECT_THROW(RealismAugment::FromString("instance_mix=1.5"), InvalidArgument);
 }
 
+// dst: a 4 x 5 m room (floor class 1 as one instance, wall points class 0 without one) with a
+// chair (class 5, CAD 1) in its x < 0.6, y < 0.6 corner; src: the same layout with other labels
+// (floor 3, wall 2, no chair), 1.5 m higher and far away.
+Stage1Sample CuboidRoom(std::uint64_t seed, bool is_src) {
+  Stage1Sample s = Room(seed, 6000);
+  const int floor_class = is_src ? 3 : 1, wall_class = is_src ? 2 : 0;
+  for (std::size_t i = 0; i < s.points.size(); ++i) {
+    s.semantic[i] = s.instance[i] == 0 ? floor_class : wall_class;
+  }
+  s.instances[0].semantic = floor_class;
+  if (!is_src) {
+    std::mt19937_64 rng(seed + 1);
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    s.instances.push_back({5, 1, true, 0.7});
+    for (int i = 0; i < 200; ++i) {
+      s.points.emplace_back(0.1f + 0.4f * u(rng), 0.1f + 0.4f * u(rng), 0.8f * u(rng));
+      s.colors.emplace_back(0.9f, 0.1f, 0.1f);
+      s.semantic.push_back(5);
+      s.instance.push_back(1);
+    }
+  } else {
+    for (auto& p : s.points) p += Eigen::Vector3f(10, -4, 1.5f);
+  }
+  return s;
+}
+
+TEST(Stage1Realism, MixCuboidsSwapsQuadrantsOfAnotherRoomIn) {
+  const Stage1Sample dst = CuboidRoom(21, false), src = CuboidRoom(22, true);
+  for (std::uint64_t seed = 1; seed <= 12; ++seed) {
+    SCOPED_TRACE(seed);
+    std::mt19937_64 rng(seed);
+    const Stage1Sample m = MixCuboids(dst, src, &rng);
+    m.Validate();
+    // dst's kept points first, in order and unchanged; then src's, moved rigidly.
+    std::size_t n_dst = 0;
+    for (std::size_t i = 0; i < m.points.size() && (m.semantic[i] == 0 || m.semantic[i] == 1 ||
+                                                     m.semantic[i] == 5);
+         ++i) {
+      ++n_dst;
+    }
+    const std::size_t n_src = m.points.size() - n_dst;
+    // 1 to 3 of 4 quadrants each, a quadrant holding >= 9 % of a room's points.
+    EXPECT_GT(n_dst, dst.points.size() / 12);
+    EXPECT_LT(n_dst, dst.points.size() - dst.points.size() / 12);
+    EXPECT_GT(n_src, src.points.size() / 12);
+    for (std::size_t i = n_dst; i < m.points.size(); ++i) {
+      ASSERT_TRUE(m.semantic[i] == 2 || m.semantic[i] == 3) << i;
+    }
+    std::size_t j = 0;  // dst's kept points are a subsequence of dst
+    for (std::size_t i = 0; i < n_dst; ++i) {
+      while (j < dst.points.size() && dst.points[j] != m.points[i]) ++j;
+      ASSERT_LT(j, dst.points.size()) << "output point " << i << " is not a dst point";
+      EXPECT_EQ(m.semantic[i], dst.semantic[j]);
+      EXPECT_EQ(m.colors[i], dst.colors[j]);
+    }
+    // One translation for every src point: floor onto dst's floor (z = 0).
+    float src_floor = 1e9f;
+    for (std::size_t i = n_dst; i < m.points.size(); ++i)
+      src_floor = std::min(src_floor, m.points[i].z());
+    EXPECT_NEAR(src_floor, 0.0f, 0.03f);
+    // The src part is a subsequence of src's points under one translation.
+    bool rigid = false;
+    for (std::size_t j0 = 0; j0 < src.points.size() && !rigid; ++j0) {
+      const Eigen::Vector3f t = m.points[n_dst] - src.points[j0];
+      std::size_t j = j0 + 1, i = n_dst + 1;
+      for (; i < m.points.size(); ++i, ++j) {
+        while (j < src.points.size() && (src.points[j] + t - m.points[i]).norm() > 1e-4f) ++j;
+        if (j == src.points.size()) break;
+      }
+      rigid = i == m.points.size();
+      if (rigid) {
+        EXPECT_NEAR(t.z(), -1.5f, 0.03f);
+      }
+    }
+    EXPECT_TRUE(rigid);
+    // The two parts meet at one split point (30-70 % of dst's 4 x 5 m): about it, each quadrant
+    // holds points of one room only (on a 1 cm search grid: up to 1 % in the strips between).
+    bool separable = false;
+    for (int ix = 0; ix <= 160 && !separable; ++ix) {
+      for (int iy = 0; iy <= 200 && !separable; ++iy) {
+        const float cx = 1.2f + 0.01f * ix, cy = 1.5f + 0.01f * iy;
+        std::size_t count[4][2] = {{0, 0}, {0, 0}, {0, 0}, {0, 0}};
+        for (std::size_t i = 0; i < m.points.size(); ++i) {
+          const int q = (m.points[i].x() >= cx ? 1 : 0) + (m.points[i].y() >= cy ? 2 : 0);
+          ++count[q][i < n_dst ? 0 : 1];
+        }
+        std::size_t minority = 0;
+        for (const auto& c : count) minority += std::min(c[0], c[1]);
+        separable = minority <= m.points.size() / 100;
+      }
+    }
+    EXPECT_TRUE(separable);
+    // Instances: dst's floor, the chair only if its corner stayed, src's floor; compacted.
+    bool chair_kept = false;
+    for (std::size_t i = 0; i < n_dst; ++i) chair_kept = chair_kept || m.semantic[i] == 5;
+    ASSERT_EQ(m.instances.size(), chair_kept ? 3u : 2u);
+    EXPECT_EQ(m.instances.back().semantic, 3);
+    if (chair_kept) {
+      EXPECT_EQ(m.instances[1].cad_class, 1);
+      EXPECT_DOUBLE_EQ(m.instances[1].heading, 0.7);
+    }
+    for (std::size_t i = 0; i < m.points.size(); ++i) {
+      int want = m.instance[i];
+      if (m.semantic[i] == 5) want = 1;
+      if (m.semantic[i] == 3) want = static_cast<int>(m.instances.size()) - 1;
+      if (m.semantic[i] == 0 || m.semantic[i] == 2) want = -1;
+      ASSERT_EQ(m.instance[i], want) << i;
+    }
+    // Deterministic in the generator.
+    std::mt19937_64 rng2(seed);
+    EXPECT_EQ(MixCuboids(dst, src, &rng2).points, m.points);
+  }
+  // A weighted dst: src points get weight 1.
+  Stage1Sample w = dst;
+  w.weight.assign(w.points.size(), 4.0f);
+  std::mt19937_64 rng(3);
+  const Stage1Sample mw = MixCuboids(w, src, &rng);
+  ASSERT_EQ(mw.weight.size(), mw.points.size());
+  EXPECT_FLOAT_EQ(mw.weight.front(), 4.0f);
+  EXPECT_FLOAT_EQ(mw.weight.back(), 1.0f);
+  EXPECT_THROW(MixCuboids(dst, src, nullptr), InvalidArgument);
+  Stage1Sample bad = dst;
+  bad.semantic.pop_back();
+  EXPECT_THROW(MixCuboids(bad, src, &rng), InvalidArgument);
+}
+
+TEST(Stage1Realism, CuboidMixInBatchesOnItsOwnStream) {
+  const Stage1Sample a = CuboidRoom(31, false), b = CuboidRoom(32, true);
+  AugmentConfig plain = Plain();
+  AugmentConfig mix = plain;
+  mix.realism.cuboid_mix = 1.0;
+  EXPECT_FALSE(mix.realism.any());
+  const Stage1Batch base = MakeStage1Batch({&a, &b}, Rgb(), &plain, 11);
+  const Stage1Batch mixed = MakeStage1Batch({&a, &b}, Rgb(), &mix, 11);
+  // Scene 0 now holds points of scene 1's labels (2, 3) and scene 1 of scene 0's (0, 1, 5).
+  bool a_has_b = false, b_has_a = false;
+  for (std::int64_t i = 0; i < mixed.point_offsets[1]; ++i)
+    a_has_b = a_has_b || mixed.semantic[i] == 2 || mixed.semantic[i] == 3;
+  for (std::int64_t i = mixed.point_offsets[1]; i < mixed.num_points(); ++i)
+    b_has_a = b_has_a || mixed.semantic[i] == 0 || mixed.semantic[i] == 1;
+  EXPECT_TRUE(a_has_b);
+  EXPECT_TRUE(b_has_a);
+  AugmentConfig off = plain;
+  off.realism.cuboid_mix = 0;
+  EXPECT_EQ(MakeStage1Batch({&a, &b}, Rgb(), &off, 11).points, base.points);
+  EXPECT_EQ(MakeStage1Batch({&a}, Rgb(), &mix, 11).num_points(),
+            static_cast<std::int64_t>(a.points.size()));
+  EXPECT_DOUBLE_EQ(RealismAugment::FromString("cuboid_mix=0.5").cuboid_mix, 0.5);
+  EXPECT_THROW(RealismAugment::FromString("cuboid_mix=2"), InvalidArgument);
+}
+
 }  // namespace
 }  // namespace dimr::nn

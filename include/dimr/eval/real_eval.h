@@ -106,6 +106,11 @@ struct ObjectMatch {
   int best_index = -1;        // that prediction (index into the predictions), -1 if none
   double best_iou_any = 0.0;  // over all predictions
   int best_any_class = -1;    // the CAD class of that prediction
+  // Of that prediction: the share of the GT object's points it holds (recall) and the share of
+  // its own points in the GT object (precision) - low recall: the object is split or missed,
+  // low precision: it is merged with its surroundings.
+  double best_any_recall = 0.0;
+  double best_any_precision = 0.0;
   bool found = false;         // best_iou >= threshold
 };
 

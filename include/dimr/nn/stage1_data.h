@@ -145,6 +145,12 @@ struct RealismAugment {
   // the next scene of the batch (MixInstances below); needs batches of >= 2 scenes.
   double instance_mix = 0;
   int instance_mix_count = 3;
+  // Cuboid mixing (issue 22 item 6; DODA's cuboid mixing, ECCV 2022): with probability
+  // cuboid_mix a scene of a batch has some of its four x-y quadrants replaced by the
+  // quadrants of the next scene of the batch (MixCuboids below) - objects meet neighbours
+  // and walls of another room, so the network cannot lean on whole-room context; needs
+  // batches of >= 2 scenes. Applied before instance mixing.
+  double cuboid_mix = 0;
   bool any() const;  // the point / colour part (not instance mixing)
   bool any_color() const;
   void Validate() const;         // throws dimr::InvalidArgument naming the key
@@ -172,6 +178,19 @@ std::vector<Eigen::Vector3f> AugmentRealismColors(const std::vector<Eigen::Vecto
 // no eligible instance returns dst unchanged. Throws dimr::InvalidArgument for invalid samples.
 Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int count,
                           std::mt19937_64* rng, int min_points = 50);
+
+// Cuboid mixing: `dst` and `src` are each cut into four x-y quadrants at a split point drawn
+// uniformly in the middle 30-70 % of their x-y bounding box (one draw per axis and scene); one
+// to three of dst's quadrants (each with probability 1/2, redrawn until it is neither none nor
+// all) are replaced by src's quadrant of the same index, translated so that src's split point
+// lands on dst's and src's floor on dst's (EstimateNetworkFrame); the rest of dst stays as it
+// was, in order, followed by the src points. Colours, semantic labels, headings and weights
+// (1 where src has none) come along; src's instances get new indices after dst's, an
+// instance cut by a quadrant border keeps only its points on the kept side (the offset target
+// becomes that part's centre, as in DODA), and instances left without points are dropped
+// (indices compacted). Deterministic in `rng`; a scene without points returns dst unchanged.
+// Throws dimr::InvalidArgument for invalid samples or a null `rng`.
+Stage1Sample MixCuboids(const Stage1Sample& dst, const Stage1Sample& src, std::mt19937_64* rng);
 
 // Drops a fraction U[0, config.point_dropout] of `keep` (order kept, at least one left).
 void AugmentRealismDropout(std::vector<std::size_t>* keep, const RealismAugment& config,
