@@ -185,10 +185,10 @@ Stage1Sample MixInstances(const Stage1Sample& dst, const Stage1Sample& src, int 
 // all) are replaced by src's quadrant of the same index, translated so that src's split point
 // lands on dst's and src's floor on dst's (EstimateNetworkFrame); the rest of dst stays as it
 // was, in order, followed by the src points. Colours, semantic labels, headings and weights
-// (1 where src has none) come along; src's instances get new indices after dst's, an
-// instance cut by a quadrant border keeps only its points on the kept side (the offset target
-// becomes that part's centre, as in DODA), and instances left without points are dropped
-// (indices compacted). Deterministic in `rng`; a scene without points returns dst unchanged.
+// (1 where src has none) come along; instances are renumbered in order of first appearance
+// (dst's before src's), an instance cut by a quadrant border keeps only its points on the kept
+// side (the offset target becomes that part's centre, as in DODA), and instances left without
+// points are dropped. Deterministic in `rng`; a scene without points returns dst unchanged.
 // Throws dimr::InvalidArgument for invalid samples or a null `rng`.
 Stage1Sample MixCuboids(const Stage1Sample& dst, const Stage1Sample& src, std::mt19937_64* rng);
 
