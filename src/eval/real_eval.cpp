@@ -145,13 +145,23 @@ std::vector<int> DropLabelled(const std::vector<int>& idx, const std::vector<int
   return out;
 }
 
+namespace {
+// |a n b| of two sets of point indices.
+std::size_t Intersection(const std::unordered_set<int>& a, const std::unordered_set<int>& b) {
+  std::size_t inter = 0;
+  for (int x : b) inter += a.count(x);
+  return inter;
+}
+double SetIoU(std::size_t a, std::size_t b, std::size_t inter) {
+  if (a == 0 && b == 0) return 0.0;
+  return static_cast<double>(inter) / static_cast<double>(a + b - inter);
+}
+}  // namespace
+
 double PointIoU(const std::vector<int>& a, const std::vector<int>& b) {
   const std::unordered_set<int> sa(a.begin(), a.end());
   const std::unordered_set<int> sb(b.begin(), b.end());
-  if (sa.empty() && sb.empty()) return 0.0;
-  std::size_t inter = 0;
-  for (int x : sb) inter += sa.count(x);
-  return static_cast<double>(inter) / static_cast<double>(sa.size() + sb.size() - inter);
+  return SetIoU(sa.size(), sb.size(), Intersection(sa, sb));
 }
 
 std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_points,
@@ -165,19 +175,16 @@ std::vector<ObjectMatch> MatchObjects(const std::vector<std::vector<int>>& gt_po
   for (std::size_t g = 0; g < gt_points.size(); ++g) {
     ObjectMatch& m = out[g];
     m.cad_class = gt_class[g];
-    m.gt_points =
-        static_cast<int>(std::unordered_set<int>(gt_points[g].begin(), gt_points[g].end()).size());
+    const std::unordered_set<int> gt_set(gt_points[g].begin(), gt_points[g].end());
+    m.gt_points = static_cast<int>(gt_set.size());
     for (std::size_t p = 0; p < preds.size(); ++p) {
-      const double iou = PointIoU(gt_points[g], preds[p].points);
+      const std::unordered_set<int> pred_set(preds[p].points.begin(), preds[p].points.end());
+      const std::size_t inter = Intersection(gt_set, pred_set);
+      const double iou = SetIoU(gt_set.size(), pred_set.size(), inter);
       if (iou > m.best_iou_any) {
         m.best_iou_any = iou;
         m.best_any_class = preds[p].cad_class;
-        const std::unordered_set<int> pred_set(preds[p].points.begin(), preds[p].points.end());
-        std::size_t inter = 0;
-        for (int x : std::unordered_set<int>(gt_points[g].begin(), gt_points[g].end())) {
-          inter += pred_set.count(x);
-        }
-        m.best_any_recall = m.gt_points > 0 ? static_cast<double>(inter) / m.gt_points : 0.0;
+        m.best_any_recall = gt_set.empty() ? 0.0 : static_cast<double>(inter) / gt_set.size();
         m.best_any_precision =
             pred_set.empty() ? 0.0 : static_cast<double>(inter) / pred_set.size();
       }

@@ -881,9 +881,9 @@ Stage1Sample MixCuboids(const Stage1Sample& dst, const Stage1Sample& src, std::m
   const auto quadrant = [](const Eigen::Vector3f& p, const Eigen::Vector2f& c) {
     return (p.x() >= c.x() ? 1 : 0) + (p.y() >= c.y() ? 2 : 0);
   };
-  const Eigen::Vector3f shift(cd.x() - cs.x(), cd.y() - cs.y(),
-                              EstimateNetworkFrame(dst.points).floor_z -
-                                  EstimateNetworkFrame(src.points).floor_z);
+  const Eigen::Vector3f shift(
+      cd.x() - cs.x(), cd.y() - cs.y(),
+      EstimateNetworkFrame(dst.points).floor_z - EstimateNetworkFrame(src.points).floor_z);
   Stage1Sample out;
   out.name = dst.name;
   const bool colours = !dst.colors.empty();
@@ -1161,27 +1161,28 @@ Stage1Batch MakeStage1Batch(const std::vector<const Stage1Sample*>& samples,
       throw InvalidArgument("MakeStage1Batch: use_rgb but " + SampleLabel(*src) +
                             " has no colours");
     }
-    // Cuboid mixing, then instance mixing, each on its own stream (without them the batches
-    // are bit for bit as before).
-    Stage1Sample cuboids;
-    if (aug && augment->realism.cuboid_mix > 0 && batch.batch_size >= 2) {
-      std::mt19937_64 cub_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0xc0b1ull));
-      const Stage1Sample* other = samples[(b + 1) % batch.batch_size];
-      if (Uniform01(&cub_rng) < augment->realism.cuboid_mix) {
-        cuboids = MixCuboids(*src, *other, &cub_rng);
-        cuboids.name = src->name;
-        src = &cuboids;
+    // Cuboid mixing, then instance mixing, each with the batch's next scene and on its own
+    // stream (without them the batches are bit for bit as before). Both keep the scene's name.
+    const auto mix_with_next = [&](double probability, std::uint64_t stream, Stage1Sample* holder,
+                                   const auto& mix) {
+      if (probability <= 0 || batch.batch_size < 2) return;
+      std::mt19937_64 mix_rng(HashSeed(seed, static_cast<std::uint64_t>(b), stream));
+      if (Uniform01(&mix_rng) < probability) {
+        *holder = mix(*src, *samples[(b + 1) % batch.batch_size], &mix_rng);
+        src = holder;
       }
-    }
-    Stage1Sample mixed;
-    if (aug && augment->realism.instance_mix > 0 && batch.batch_size >= 2) {
-      std::mt19937_64 mix_rng(HashSeed(seed, static_cast<std::uint64_t>(b), 0x3171ull));
-      const Stage1Sample* other = samples[(b + 1) % batch.batch_size];
-      if (Uniform01(&mix_rng) < augment->realism.instance_mix) {
-        mixed = MixInstances(*src, *other, augment->realism.instance_mix_count, &mix_rng);
-        mixed.name = src->name;
-        src = &mixed;
-      }
+    };
+    Stage1Sample cuboids, mixed;
+    if (aug) {
+      const RealismAugment& r = augment->realism;
+      mix_with_next(r.cuboid_mix, 0xc0b1ull, &cuboids,
+                    [](const Stage1Sample& dst, const Stage1Sample& other, std::mt19937_64* g) {
+                      return MixCuboids(dst, other, g);
+                    });
+      mix_with_next(r.instance_mix, 0x3171ull, &mixed,
+                    [&r](const Stage1Sample& dst, const Stage1Sample& other, std::mt19937_64* g) {
+                      return MixInstances(dst, other, r.instance_mix_count, g);
+                    });
     }
     const NetworkFrame frame = EstimateNetworkFrame(src->points);
     batch.frames.push_back(frame);

@@ -346,8 +346,8 @@ TEST(Stage1Realism, MixCuboidsSwapsQuadrantsOfAnotherRoomIn) {
     m.Validate();
     // dst's kept points first, in order and unchanged; then src's, moved rigidly.
     std::size_t n_dst = 0;
-    for (std::size_t i = 0; i < m.points.size() && (m.semantic[i] == 0 || m.semantic[i] == 1 ||
-                                                     m.semantic[i] == 5);
+    for (std::size_t i = 0;
+         i < m.points.size() && (m.semantic[i] == 0 || m.semantic[i] == 1 || m.semantic[i] == 5);
          ++i) {
       ++n_dst;
     }

@@ -111,7 +111,7 @@ struct ObjectMatch {
   // low precision: it is merged with its surroundings.
   double best_any_recall = 0.0;
   double best_any_precision = 0.0;
-  bool found = false;         // best_iou >= threshold
+  bool found = false;  // best_iou >= threshold
 };
 
 // For each GT object (its point set and CAD class), the best-overlapping predictions.
